@@ -1,0 +1,129 @@
+// Builds the submaps of one session from de-skewed scans and their odometry poses (reference
+// paper, section IV): a new submap starts when the motion from the current submap's origin
+// exceeds 20 m or 0.7 rad. Points are accumulated in voxels (centroid per voxel) in the submap
+// frame.
+//
+// In-session dynamic filtering (the paper accumulates submaps "following the map updating
+// method of Pomerleau et al. 2014"): every voxel keeps counts of how often later scans
+// measured it (consistent) and how often they measured clearly behind it (seen through: free
+// space where the point was). A finished submap stays open to these checks for `tail_m` more
+// metres of driving, so objects that were still in view at its end are judged too; then voxels
+// seen through at least `min_seen_through` times and more often than measured, or seen
+// through in each of their last `min_consecutive_seen_through` checks, are dropped.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "multisession_mapper/core/range_image.h"
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/submap.h"
+#include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/voxel_key.h"
+
+namespace multisession_mapper {
+namespace core {
+
+struct InSessionDynamicFilterConfig {
+  bool enabled = true;
+  RangeImageConfig range_image;
+  /// A measured range within margin_base_m + margin_per_m * range of the point's range is
+  /// "consistent"; beyond it "seen through" [m, m/m]. Covers range noise and pose error.
+  double margin_base_m = 0.3;
+  double margin_per_m = 0.02;
+  /// Points farther than this from the sensor are not checked [m] (sparse beams far away).
+  double max_check_range_m = 40.0;
+  /// Check the open submaps with every n-th scan (costs ~N voxels per check).
+  int check_every_n_scans = 2;
+  /// Drop a voxel seen through at least this many times ...
+  int min_seen_through = 2;
+  /// ... and with seen_through / (seen_through + consistent) above this ratio.
+  double min_seen_through_ratio = 0.5;
+  /// Also drop a voxel whose last this-many checks with evidence all saw through it: it was
+  /// there (consistent earlier), then it left. Recent evidence wins, as in Pomerleau et al.
+  /// 0 disables.
+  int min_consecutive_seen_through = 3;
+  /// A finished submap stays open to checks for this much more driving [m].
+  double tail_m = 10.0;
+
+  Status Validate() const;
+};
+
+struct SubmapBuilderConfig {
+  /// Start a new submap beyond this translation from the current origin [m] (paper: 20 m).
+  double max_translation_m = 20.0;
+  /// ... or beyond this rotation from the current origin [rad] (paper: 0.7 rad).
+  double max_rotation_rad = 0.7;
+  /// Submap voxel edge [m]; one point (the centroid) per voxel is stored.
+  double voxel_size_m = 0.2;
+  /// Scan points farther than this from the sensor are not accumulated [m].
+  double max_point_range_m = 60.0;
+  InSessionDynamicFilterConfig dynamic_filter;
+
+  Status Validate() const;
+};
+
+struct SubmapBuilderStats {
+  std::uint64_t scans = 0;
+  std::uint64_t submaps_finished = 0;
+  std::uint64_t voxels_dropped_dynamic = 0;
+  std::uint64_t voxels_kept = 0;
+};
+
+class SubmapBuilder {
+ public:
+  static StatusOr<SubmapBuilder> Create(const SubmapBuilderConfig& config,
+                                        const std::string& session);
+
+  /// Adds a de-skewed scan (sensor frame at its stamp) taken at `T_odom_sensor`.
+  /// Submap origins are in the odometry frame until the pose graph moves them.
+  void AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_sensor);
+
+  /// Closes every open submap (end of the session).
+  void FinishSession();
+
+  /// Submaps finished since the last call, in id order; moved out.
+  std::vector<Submap, Eigen::aligned_allocator<Submap>> TakeFinished();
+
+  /// Id of the submap the last scan went into.
+  std::uint32_t current_submap_id() const { return next_id_ == 0 ? 0 : next_id_ - 1; }
+  const SubmapBuilderStats& stats() const { return stats_; }
+  void set_config(const SubmapBuilderConfig& config) { config_ = config; }
+  const SubmapBuilderConfig& config() const { return config_; }
+
+ private:
+  struct VoxelPoint {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    std::uint32_t count = 0;
+    std::uint16_t seen_through = 0;
+    std::uint16_t consistent = 0;
+    std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
+  };
+  struct OpenSubmap {
+    Submap submap;
+    VoxelMap<VoxelPoint> voxels;
+    bool full = false;           ///< a newer submap has started; only checks remain
+    double tail_driven_m = 0.0;  ///< driving since it became full
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+
+  SubmapBuilder(const SubmapBuilderConfig& config, const std::string& session)
+      : config_(config), session_(session) {}
+  void StartSubmap(const Pose3& T_odom_sensor);
+  void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open);
+  void Finalize(OpenSubmap* open);
+
+  SubmapBuilderConfig config_;
+  std::string session_;
+  std::deque<OpenSubmap> open_;  ///< oldest first; the last one receives points
+  std::vector<Submap, Eigen::aligned_allocator<Submap>> finished_;
+  std::uint32_t next_id_ = 0;
+  bool has_last_pose_ = false;
+  Pose3 last_pose_ = Pose3::Identity();
+  SubmapBuilderStats stats_;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,182 @@
+#include "multisession_mapper/core/submap_builder.h"
+
+#include <cmath>
+#include <limits>
+
+#include "multisession_mapper/core/se3.h"
+
+namespace multisession_mapper {
+namespace core {
+
+Status InSessionDynamicFilterConfig::Validate() const {
+  Status s = range_image.Validate();
+  if (!s.ok()) return s;
+  if (!(margin_base_m > 0.0) || !(margin_per_m >= 0.0) || !std::isfinite(margin_base_m) ||
+      !std::isfinite(margin_per_m)) {
+    return Status::Error("dynamic_filter.margin_base_m must be > 0 and margin_per_m >= 0");
+  }
+  if (!(max_check_range_m > 0.0)) return Status::Error("dynamic_filter.max_check_range_m must be > 0");
+  if (check_every_n_scans < 1) return Status::Error("dynamic_filter.check_every_n_scans must be >= 1");
+  if (min_seen_through < 1) return Status::Error("dynamic_filter.min_seen_through must be >= 1");
+  if (!(min_seen_through_ratio >= 0.0 && min_seen_through_ratio < 1.0)) {
+    return Status::Error("dynamic_filter.min_seen_through_ratio must be in [0, 1)");
+  }
+  if (min_consecutive_seen_through < 0) {
+    return Status::Error("dynamic_filter.min_consecutive_seen_through must be >= 0");
+  }
+  if (!(tail_m >= 0.0)) return Status::Error("dynamic_filter.tail_m must be >= 0");
+  return Status::Ok();
+}
+
+Status SubmapBuilderConfig::Validate() const {
+  if (!(max_translation_m > 0.0) || !std::isfinite(max_translation_m)) {
+    return Status::Error("submap.max_translation_m must be > 0");
+  }
+  if (!(max_rotation_rad > 0.0) || !std::isfinite(max_rotation_rad)) {
+    return Status::Error("submap.max_rotation_rad must be > 0");
+  }
+  if (!(voxel_size_m >= 0.01) || !std::isfinite(voxel_size_m)) {
+    return Status::Error("submap.voxel_size_m must be >= 0.01");
+  }
+  if (!(max_point_range_m > 0.0)) return Status::Error("submap.max_point_range_m must be > 0");
+  return dynamic_filter.Validate();
+}
+
+StatusOr<SubmapBuilder> SubmapBuilder::Create(const SubmapBuilderConfig& config,
+                                              const std::string& session) {
+  Status s = config.Validate();
+  if (!s.ok()) return s;
+  if (session.empty()) return Status::Error("submap builder needs a session name");
+  return SubmapBuilder(config, session);
+}
+
+void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor) {
+  if (!open_.empty()) open_.back().full = true;
+  OpenSubmap open;
+  open.submap.session = session_;
+  open.submap.id = next_id_++;
+  open.submap.T_map_submap = T_odom_sensor;
+  open_.push_back(std::move(open));
+}
+
+void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor,
+                                    OpenSubmap* open) {
+  const InSessionDynamicFilterConfig& c = config_.dynamic_filter;
+  const Pose3 T_sensor_submap = T_odom_sensor.inverse() * open->submap.T_map_submap;
+  const Eigen::Vector3d sensor_in_submap = T_sensor_submap.inverse().translation();
+  const double max_range_sq = c.max_check_range_m * c.max_check_range_m;
+  for (auto& [key, voxel] : open->voxels) {
+    const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
+    if ((p_submap - sensor_in_submap).squaredNorm() > max_range_sq) continue;
+    const Eigen::Vector3d p_sensor = T_sensor_submap * p_submap;
+    const double margin = c.margin_base_m + c.margin_per_m * p_sensor.norm();
+    switch (image.Check(p_sensor, margin)) {
+      case Visibility::kSeenThrough:
+        if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) ++voxel.seen_through;
+        if (voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {
+          ++voxel.consecutive_seen_through;
+        }
+        break;
+      case Visibility::kConsistent:
+        if (voxel.consistent < std::numeric_limits<std::uint16_t>::max()) ++voxel.consistent;
+        voxel.consecutive_seen_through = 0;
+        break;
+      default:
+        break;
+    }
+  }
+}
+
+void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_sensor) {
+  ++stats_.scans;
+  const double step_m =
+      has_last_pose_ ? (T_odom_sensor.translation() - last_pose_.translation()).norm() : 0.0;
+  has_last_pose_ = true;
+  last_pose_ = T_odom_sensor;
+
+  // Submap splitting on motion from the current origin.
+  if (open_.empty() || open_.back().full) {
+    StartSubmap(T_odom_sensor);
+  } else {
+    const Pose3 motion = se3::Between(open_.back().submap.T_map_submap, T_odom_sensor);
+    if (se3::TranslationNorm(motion) > config_.max_translation_m ||
+        se3::RotationAngleRad(motion) > config_.max_rotation_rad) {
+      StartSubmap(T_odom_sensor);
+    }
+  }
+  OpenSubmap& current = open_.back();
+  current.submap.length_m += step_m;
+
+  // Visibility checks of everything accumulated so far, before this scan's points go in.
+  if (config_.dynamic_filter.enabled &&
+      stats_.scans % static_cast<std::uint64_t>(config_.dynamic_filter.check_every_n_scans) == 0) {
+    const RangeImage image(deskewed_scan, config_.dynamic_filter.range_image);
+    for (OpenSubmap& open : open_) CheckVisibility(image, T_odom_sensor, &open);
+  }
+
+  // Accumulate.
+  SubmapScanRecord record;
+  record.stamp_s = deskewed_scan.stamp_s;
+  record.T_submap_sensor = se3::Between(current.submap.T_map_submap, T_odom_sensor);
+  current.submap.scans.push_back(record);
+  const double max_range_sq = config_.max_point_range_m * config_.max_point_range_m;
+  for (const LidarPoint& p : deskewed_scan.points) {
+    const Eigen::Vector3d p_sensor = p.position_m.cast<double>();
+    if (!p_sensor.allFinite() || p_sensor.squaredNorm() > max_range_sq) continue;
+    const Eigen::Vector3d p_submap = record.T_submap_sensor * p_sensor;
+    VoxelPoint& voxel = current.voxels[ToVoxelKey(p_submap, config_.voxel_size_m)];
+    voxel.sum += p_submap;
+    ++voxel.count;
+  }
+
+  // Submaps whose tail is driven are final.
+  for (OpenSubmap& open : open_) {
+    if (open.full) open.tail_driven_m += step_m;
+  }
+  while (!open_.empty() && open_.front().full &&
+         (!config_.dynamic_filter.enabled ||
+          open_.front().tail_driven_m >= config_.dynamic_filter.tail_m)) {
+    Finalize(&open_.front());
+    open_.pop_front();
+  }
+}
+
+void SubmapBuilder::Finalize(OpenSubmap* open) {
+  const InSessionDynamicFilterConfig& c = config_.dynamic_filter;
+  Submap& submap = open->submap;
+  submap.points.clear();
+  submap.points.reserve(open->voxels.size());
+  for (const auto& [key, voxel] : open->voxels) {
+    const bool mostly_free =
+        voxel.seen_through >= c.min_seen_through &&
+        voxel.seen_through > c.min_seen_through_ratio * (voxel.seen_through + voxel.consistent);
+    const bool left = c.min_consecutive_seen_through > 0 &&
+                      voxel.consecutive_seen_through >= c.min_consecutive_seen_through;
+    const bool dynamic = c.enabled && (mostly_free || left);
+    if (dynamic) {
+      ++stats_.voxels_dropped_dynamic;
+      continue;
+    }
+    submap.points.push_back(voxel.sum / voxel.count);
+    ++stats_.voxels_kept;
+  }
+  open->voxels.clear();
+  ++stats_.submaps_finished;
+  finished_.push_back(std::move(submap));
+}
+
+void SubmapBuilder::FinishSession() {
+  while (!open_.empty()) {
+    Finalize(&open_.front());
+    open_.pop_front();
+  }
+}
+
+std::vector<Submap, Eigen::aligned_allocator<Submap>> SubmapBuilder::TakeFinished() {
+  std::vector<Submap, Eigen::aligned_allocator<Submap>> out;
+  out.swap(finished_);
+  return out;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,194 @@
+#include "multisession_mapper/core/submap_builder.h"
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "multisession_mapper/core/se3.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+// Ground (z = 0), a wall at x = 20 m, and a car (4.5 x 1.8 x 1.5 m box) driving along y at
+// x = 10 m. The sensor is 1.8 m above the ground.
+struct Scene {
+  double car_y = 0.0;
+  bool car_present = true;
+
+  double Raycast(const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {
+    double best = std::numeric_limits<double>::infinity();
+    if (d.z() < -1e-9) best = -o.z() / d.z();
+    if (d.x() > 1e-9) {
+      const double t = (20.0 - o.x()) / d.x();
+      const Eigen::Vector3d p = o + t * d;
+      if (t > 0 && std::abs(p.y()) < 30.0 && p.z() >= 0.0 && p.z() < 5.0) best = std::min(best, t);
+    }
+    if (car_present) {
+      const Eigen::Vector3d lo(9.1, car_y - 2.25, 0.2), hi(10.9, car_y + 2.25, 1.7);
+      double t_near = 0.0, t_far = best;
+      bool hit = true;
+      for (int a = 0; a < 3 && hit; ++a) {
+        if (std::abs(d(a)) < 1e-12) {
+          hit = o(a) >= lo(a) && o(a) <= hi(a);
+          continue;
+        }
+        double t1 = (lo(a) - o(a)) / d(a), t2 = (hi(a) - o(a)) / d(a);
+        if (t1 > t2) std::swap(t1, t2);
+        t_near = std::max(t_near, t1);
+        t_far = std::min(t_far, t2);
+        hit = t_near <= t_far;
+      }
+      if (hit && t_near > 0.0) best = std::min(best, t_near);
+    }
+    return best;
+  }
+};
+
+// A VLP-16-like scan in the sensor frame (no motion during the sweep: the builder gets
+// de-skewed scans).
+LidarScan Scan(const Scene& scene, const Pose3& T_world_sensor, double stamp_s, std::mt19937* rng) {
+  std::normal_distribution<double> noise(0.0, 0.02);
+  LidarScan scan;
+  scan.stamp_s = stamp_s;
+  scan.has_ring = true;
+  for (int col = 0; col < 900; ++col) {
+    const double azimuth = 2.0 * M_PI * col / 900.0;
+    for (int ring = 0; ring < 16; ++ring) {
+      const double elevation = (-15.0 + 2.0 * ring) * M_PI / 180.0;
+      const Eigen::Vector3d d(std::cos(elevation) * std::cos(azimuth),
+                              std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+      const double range = scene.Raycast(T_world_sensor.translation(), T_world_sensor.linear() * d);
+      if (!(range < 100.0)) continue;
+      LidarPoint p;
+      p.position_m = (d * (range + noise(*rng))).cast<float>();
+      p.ring = static_cast<std::uint16_t>(ring);
+      scan.points.push_back(p);
+    }
+  }
+  return scan;
+}
+
+bool OnCarPath(const Eigen::Vector3d& p_world) {
+  return p_world.x() > 8.9 && p_world.x() < 11.1 && p_world.z() > 0.1;
+}
+
+struct Result {
+  int car_points = 0;
+  int static_points = 0;
+};
+
+// Robot creeps along x while the car crosses its view at 4 m/s, then turns off the road (out
+// of view) for the last 4 s.
+Result RunCrossingCar(bool filter_enabled) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.enabled = filter_enabled;
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+  EXPECT_TRUE(builder.ok()) << builder.status().message();
+  std::mt19937 rng(1);
+  Scene scene;
+  std::vector<Pose3, Eigen::aligned_allocator<Pose3>> poses;
+  for (int i = 0; i < 160; ++i) {
+    scene.car_y = -24.0 + 0.4 * i;
+    scene.car_present = i < 120;
+    const Pose3 T_world_sensor = se3::FromXyzRpy(0.025 * i, 0.0, 1.8, 0, 0, 0);
+    builder.value().AddScan(Scan(scene, T_world_sensor, 100.0 + 0.1 * i, &rng), T_world_sensor);
+  }
+  builder.value().FinishSession();
+  Result result;
+  for (const Submap& submap : builder.value().TakeFinished()) {
+    for (const Eigen::Vector3d& p : submap.points) {
+      (OnCarPath(submap.T_map_submap * p) ? result.car_points : result.static_points)++;
+    }
+  }
+  return result;
+}
+
+TEST(SubmapBuilder, MovingCarIsRemovedAndStaticWorldKept) {
+  const Result unfiltered = RunCrossingCar(false);
+  const Result filtered = RunCrossingCar(true);
+  ASSERT_GT(unfiltered.car_points, 500) << "the car must leave a trail without the filter";
+  // >= 97 % of the moving car's points gone (what remains is its lowest 0.2-0.5 m, where a
+  // range test cannot tell it from the ground just behind), >= 99 % of static points kept.
+  EXPECT_LT(filtered.car_points, 0.03 * unfiltered.car_points)
+      << filtered.car_points << " of " << unfiltered.car_points << " car points remain";
+  EXPECT_GT(filtered.static_points, 0.99 * unfiltered.static_points)
+      << filtered.static_points << " of " << unfiltered.static_points << " static points kept";
+}
+
+TEST(SubmapBuilder, ParkedCarIsKept) {
+  // A car that never moves is static within a session (low-dynamic objects are the job of
+  // the multi-session stage).
+  SubmapBuilderConfig config;
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+  ASSERT_TRUE(builder.ok());
+  std::mt19937 rng(2);
+  Scene scene;
+  scene.car_y = 3.0;
+  for (int i = 0; i < 60; ++i) {
+    const Pose3 pose = se3::FromXyzRpy(0.1 * i, -10.0 + 0.3 * i, 1.8, 0, 0, 0.1);
+    builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
+  }
+  builder.value().FinishSession();
+  int car_points = 0;
+  for (const Submap& submap : builder.value().TakeFinished()) {
+    for (const Eigen::Vector3d& p : submap.points) car_points += OnCarPath(submap.T_map_submap * p);
+  }
+  EXPECT_GT(car_points, 300);
+  EXPECT_EQ(builder.value().stats().voxels_dropped_dynamic < 0.01 * builder.value().stats().voxels_kept, true)
+      << builder.value().stats().voxels_dropped_dynamic << " dropped of "
+      << builder.value().stats().voxels_kept;
+}
+
+TEST(SubmapBuilder, SplitsOnTranslationAndRotationThresholds) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.enabled = false;
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s01");
+  ASSERT_TRUE(builder.ok());
+  LidarScan empty;
+  // 50 scans 1 m apart along x, then 20 scans turning 0.1 rad in place.
+  for (int i = 0; i < 50; ++i) {
+    empty.stamp_s = i;
+    builder.value().AddScan(empty, se3::FromXyzRpy(i, 0, 0, 0, 0, 0));
+  }
+  for (int i = 1; i <= 20; ++i) {
+    empty.stamp_s = 50 + i;
+    builder.value().AddScan(empty, se3::FromXyzRpy(49, 0, 0, 0, 0, 0.1 * i));
+  }
+  builder.value().FinishSession();
+  const auto submaps = builder.value().TakeFinished();
+  ASSERT_GE(submaps.size(), 4u);
+  std::size_t scans = 0;
+  for (std::size_t k = 0; k < submaps.size(); ++k) {
+    EXPECT_EQ(submaps[k].id, k);
+    EXPECT_EQ(submaps[k].session, "s01");
+    scans += submaps[k].scans.size();
+    for (const SubmapScanRecord& scan : submaps[k].scans) {
+      EXPECT_LE(se3::TranslationNorm(scan.T_submap_sensor), 20.0 + 1e-9);
+      EXPECT_LE(se3::RotationAngleRad(scan.T_submap_sensor), 0.7 + 1e-9);
+    }
+    // Origin = pose of the first scan.
+    EXPECT_TRUE(submaps[k].scans.front().T_submap_sensor.isApprox(Pose3::Identity(), 1e-12));
+  }
+  EXPECT_EQ(scans, 70u) << "every scan lands in exactly one submap";
+  // 0..20 m, 21..41 m, 42..49 m + turning up to 0.7 rad, the rest of the turn.
+  EXPECT_EQ(submaps[0].scans.size(), 21u);
+  EXPECT_EQ(submaps[1].scans.size(), 21u);
+}
+
+TEST(SubmapBuilder, ConfigValidation) {
+  SubmapBuilderConfig config;
+  EXPECT_TRUE(config.Validate().ok());
+  config.max_translation_m = 0.0;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SubmapBuilderConfig();
+  config.dynamic_filter.min_seen_through_ratio = 1.5;
+  EXPECT_FALSE(config.Validate().ok());
+  EXPECT_FALSE(SubmapBuilder::Create(SubmapBuilderConfig(), "").ok());
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper
