@@ -7,5 +7,5 @@ benchmark's SA/DA/AA/HA, map-size figures and timings. The protocol and every ke
 report.json are documented in docs/evaluation.md.
 """
 
-__all__ = ['cli', 'dynamics', 'io', 'loops', 'map_stats', 'neighbors', 'place_recognition',
+__all__ = ['cli', 'dynamics', 'io', 'loops', 'map_stats', 'neighbors', 'pcd', 'place_recognition',
            'plots', 'report', 'timing', 'trajectory']

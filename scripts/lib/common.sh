@@ -24,7 +24,7 @@ MSM_APT_PACKAGES=(
   librviz-dev rviz
   liboctomap-dev libceres-dev libnanoflann-dev libyaml-cpp-dev
   python3-rostest libgtest-dev python3-pytest
-  python3-numpy python3-matplotlib python3-yaml python3-scipy
+  python3-numpy python3-matplotlib python3-yaml python3-scipy pcl-tools
   xvfb imagemagick
 )
 
@@ -54,6 +54,9 @@ msm_install_deps() {
 # Creates the catkin workspace (ignored folder) with the repository linked into src/.
 msm_prepare_workspace() {
   mkdir -p "${MSM_WS}/src"
+  # The workspace links back to the repository; keep rospack from crawling into build/
+  # (it would report a file system loop).
+  case "${MSM_WS}" in "${MSM_REPO}/build/"*) touch "${MSM_REPO}/build/CATKIN_IGNORE" ;; esac
   if [ ! -e "${MSM_WS}/src/multisession_mapper" ]; then
     ln -s "${MSM_REPO}" "${MSM_WS}/src/multisession_mapper"
   fi

@@ -1,0 +1,136 @@
+"""report.json, report.md and the tables printed on the terminal."""
+
+import json
+import math
+import os
+
+import numpy as np
+
+
+def clean(value):
+    """JSON-safe copy: numpy scalars to Python, NaN/inf to None."""
+    if isinstance(value, dict):
+        return {str(k): clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [clean(v) for v in value.tolist()]
+    if isinstance(value, (np.bool_, bool)):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    return value
+
+
+def _fmt(value, spec='%.3f', scale=1.0):
+    if value is None:
+        return '-'
+    if isinstance(value, bool):
+        return str(value)
+    if isinstance(value, int):
+        return str(value)
+    return spec % (value * scale)
+
+
+def _table(header, rows):
+    lines = ['| ' + ' | '.join(header) + ' |', '|' + '|'.join('---' for _ in header) + '|']
+    lines += ['| ' + ' | '.join(str(c) for c in row) + ' |' for row in rows]
+    return '\n'.join(lines)
+
+
+def markdown(report):
+    s = report['sessions']
+    parts = ['# Evaluation report', '',
+             'Map: `%s`  ' % report['inputs']['map'], 'Truth: `%s`' % report['inputs']['truth'],
+             '']
+    parts += ['## Trajectories', '',
+              'ATE in the map frame (no alignment); aligned = per session, SE(3) Umeyama. '
+              'RPE with evo\'s path-based pairs.', '',
+              _table(['session', 'scans', 'duration [s]', 'ATE RMSE [m]', 'ATE max [m]',
+                      'ATE aligned [m]', 'RPE 10 m [%]', 'RPE 100 m [%]', 'RPE 100 m [deg/100m]'],
+                     [[x['name'], x['scans'], _fmt(x['duration_s'], '%.1f'),
+                       _fmt(x['ate_rmse_m']), _fmt(x['ate_max_m']), _fmt(x['ate_rmse_aligned_m']),
+                       _fmt(x['rpe_10m_pct'], '%.2f'), _fmt(x['rpe_100m_pct'], '%.2f'),
+                       _fmt(x['rpe_100m_deg'], '%.2f')] for x in s]), '']
+    parts += ['## Inter-session loop closure (the reference paper\'s table)', '',
+              _table(['session', 'submaps', 'correct', 'undefined (new)', 'undefined (missed)',
+                      'wrong', 'overlapping', 'loop err median [m / deg]', 'intra accepted',
+                      'intra correct', 'intra wrong'],
+                     [[x['name'], x['submaps_total']] +
+                      ([x['submaps_correct'], x['submaps_undefined_new'],
+                        x['submaps_undefined_missed'], x['submaps_wrong'],
+                        x['submaps_with_truth_overlap']] if x.get('has_history', True)
+                       else ['-'] * 5) + [
+                       '%s / %s' % (_fmt(x['inter_loop_trans_err_median_m']),
+                                    _fmt(x['inter_loop_rot_err_median_deg'], '%.2f')),
+                       x['intra_loops_accepted'], x['intra_loops_correct'],
+                       x['intra_loops_wrong']] for x in s]), '']
+    parts += ['## Place recognition (per scan)', '',
+              _table(['session', 'queries', 'revisits', 'F1max', 'recall@1', 'recall@5',
+                      'max recall @ P=1', 'P / R at d_alpha'],
+                     [[x['name'], x['place_recognition']['queries'],
+                       x['place_recognition']['revisits'], _fmt(x['place_recognition']['f1max']),
+                       _fmt(x['place_recognition']['recall_at_1']),
+                       _fmt(x['place_recognition']['recall_at_5']),
+                       _fmt(x['place_recognition']['max_recall_at_full_precision']),
+                       '%s / %s' % (_fmt(x['place_recognition']['precision_at_threshold']),
+                                    _fmt(x['place_recognition']['recall_at_threshold']))]
+                      for x in s]), '']
+    d = report['dynamics']
+    if d.get('evaluated'):
+        rows = [['static', _fmt(d['static']['sa'], '%.2f', 100), '-', '-', '-',
+                 d['points']['static']],
+                ['canopy (static)', _fmt(d['canopy']['sa'], '%.2f', 100), '-', '-', '-',
+                 d['points']['canopy']]]
+        names = {'low': 'low-dynamic', 'high': 'high-dynamic', 'all_dynamic': 'all dynamic'}
+        for key in ('low', 'high', 'all_dynamic'):
+            rows.append([names[key], _fmt(d[key]['sa'], '%.2f', 100),
+                         _fmt(d[key]['da'], '%.2f', 100),
+                         _fmt(d[key]['aa'], '%.2f', 100), _fmt(d[key]['ha'], '%.2f', 100),
+                         d['points'][key if key != 'all_dynamic' else 'low'] +
+                         (d['points']['high'] if key == 'all_dynamic' else 0)])
+        parts += ['## Dynamic removal (DynamicMap definitions, %%; kept radius %.2f m)'
+                  % d['kept_radius_m'], '',
+                  _table(['set', 'SA', 'DA', 'AA', 'HA', 'GT points'], rows), '']
+    else:
+        parts += ['## Dynamic removal', '', 'not evaluated: %s' % d.get('reason', ''), '']
+    m = report['map']
+    parts += ['## Map', '',
+              _table(['session', 'points (active submaps)', 'active submaps', 'bytes on disk'],
+                     [[name, p, n, b] for name, p, n, b in
+                      zip([x['name'] for x in s], m['points_per_session'],
+                          m['active_submaps_per_session'], m['bytes_on_disk_per_session'])]
+                     + [['total', m['points_total'], m['submaps_active'], m['bytes_on_disk']]]),
+              '']
+    t = report['timing']
+    parts += ['## Timing', '',
+              _table(['figure', 'value'],
+                     [['real-time factor', _fmt(t['realtime_factor'], '%.2f')],
+                      ['deskew + odometry [ms/scan, median]',
+                       _fmt(t['odometry_ms_median'], '%.2f')],
+                      ['descriptor [ms/scan]', _fmt(t['descriptor_ms_median'], '%.3f')],
+                      ['query [ms/scan]', _fmt(t['query_ms_median'], '%.3f')],
+                      ['global registration [s/pair]', _fmt(t['global_registration_s_median'])],
+                      ['dynamic detection [s/pair]',
+                       _fmt(t['dynamic_detection_s_per_pair_median'])],
+                      ['merge [s/session]', ', '.join(_fmt(v, '%.1f')
+                                                      for v in t['merge_s_per_session'])],
+                      ['peak RSS [MB]', _fmt(t['peak_rss_mb'], '%.0f')]]), '']
+    if report.get('warnings'):
+        parts += ['## Warnings', ''] + ['- ' + w for w in report['warnings']] + ['']
+    return '\n'.join(parts)
+
+
+def write(report, out_dir):
+    os.makedirs(out_dir, exist_ok=True)
+    report = clean(report)
+    with open(os.path.join(out_dir, 'report.json'), 'w') as f:
+        json.dump(report, f, indent=2, sort_keys=False)
+        f.write('\n')
+    text = markdown(report)
+    with open(os.path.join(out_dir, 'report.md'), 'w') as f:
+        f.write(text)
+    return text

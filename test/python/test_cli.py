@@ -1,0 +1,155 @@
+"""End to end: scripts/evaluate on the hand-made map and truth, compared with the known answers."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from multisession_mapper_eval import cli
+
+import synthetic_case
+
+E = synthetic_case.EXPECTED
+SCRIPT = os.path.join(os.path.dirname(__file__), '..', '..', 'scripts', 'evaluate')
+
+REQUIRED_SESSION_KEYS = {
+    'name', 'scans', 'duration_s', 'ate_rmse_m', 'ate_rmse_aligned_m', 'rpe_100m_pct',
+    'rpe_100m_deg', 'submaps_total', 'submaps_correct', 'submaps_wrong',
+    'submaps_undefined_new', 'submaps_undefined_missed', 'intra_loops_accepted',
+    'intra_loops_wrong', 'place_recognition'}
+
+
+@pytest.fixture(scope='module')
+def report(synthetic_dirs, tmp_path_factory):
+    out = str(tmp_path_factory.mktemp('report'))
+    env = dict(os.environ, PYTHONPATH='')  # the script must find the package by itself
+    proc = subprocess.run([sys.executable, SCRIPT, '--map', synthetic_dirs[0],
+                           '--truth', synthetic_dirs[1], '--out', out],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
+                          universal_newlines=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    with open(os.path.join(out, 'report.json')) as f:
+        text = f.read()
+    return json.loads(text), out, proc.stdout
+
+
+def test_required_keys_present(report):
+    data, _, _ = report
+    assert [s['name'] for s in data['sessions']] == ['s00', 's01']
+    for s in data['sessions']:
+        assert REQUIRED_SESSION_KEYS <= set(s)
+        assert {'f1max', 'recall_at_1', 'recall_at_5',
+                'max_recall_at_full_precision'} <= set(s['place_recognition'])
+    assert set(data['dynamics']['low']) >= {'sa', 'da', 'aa', 'ha'}
+    assert 'da' in data['dynamics']['high'] and 'sa' in data['dynamics']['static']
+    assert 'sa' in data['dynamics']['canopy']
+    assert {'points_total', 'bytes_on_disk', 'bytes_on_disk_per_session'} <= set(data['map'])
+    assert {'realtime_factor', 'odometry_ms_median', 'descriptor_ms_median', 'query_ms_median',
+            'global_registration_s_median', 'dynamic_detection_s_per_pair_median',
+            'merge_s_per_session', 'peak_rss_mb'} <= set(data['timing'])
+
+
+def test_values_equal_the_known_answers(report):
+    data, _, _ = report
+    s = data['sessions']
+    assert [x['scans'] for x in s] == [56, 100]
+    for key in ('ate_rmse_m', 'ate_rmse_aligned_m'):
+        assert [x[key] for x in s] == pytest.approx(E[key], abs=1e-6), key
+    for key in ('submaps_total', 'submaps_correct', 'submaps_wrong', 'submaps_undefined_new',
+                'submaps_undefined_missed', 'intra_loops_accepted', 'intra_loops_wrong'):
+        assert [x[key] for x in s] == E[key], key
+    assert s[0]['place_recognition']['f1max'] is None
+    p = s[1]['place_recognition']
+    for key in ('f1max', 'recall_at_1', 'recall_at_5', 'max_recall_at_full_precision'):
+        assert p[key] == pytest.approx(E[key]), key
+    assert s[0]['rpe_10m_pct'] == pytest.approx(0.0, abs=1e-6)
+    assert s[0]['rpe_100m_pct'] is None and s[0]['rpe_100m_pairs'] == 0  # 55 m route
+    d = data['dynamics']
+    assert d['static']['sa'] == pytest.approx(E['dynamics']['static_sa'])
+    assert d['canopy']['sa'] == pytest.approx(E['dynamics']['canopy_sa'])
+    assert d['low']['da'] == pytest.approx(E['dynamics']['low_da'])
+    assert d['low']['aa'] == pytest.approx(E['dynamics']['low_aa'])
+    assert d['low']['ha'] == pytest.approx(E['dynamics']['low_ha'])
+    assert d['high']['da'] == pytest.approx(E['dynamics']['high_da'])
+    assert data['map']['points_total'] == 132
+    assert data['map']['bytes_after_session'] == [None, None]  # not recorded by this map
+    assert [x['submaps_unknown'] for x in s] == [0, 0]
+    t = data['timing']
+    for key in ('realtime_factor', 'odometry_ms_median', 'global_registration_s_median',
+                'dynamic_detection_s_per_pair_median', 'peak_rss_mb'):
+        assert t[key] == pytest.approx(E[key]), key
+    assert t['merge_s_per_session'] == E['merge_s_per_session']
+
+
+def test_fractions_in_unit_interval(report):
+    data, _, _ = report
+
+    def walk(value, key=''):
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(v, k)
+        elif isinstance(value, list):
+            for v in value:
+                walk(v, key)
+        elif key in ('sa', 'da', 'aa', 'ha', 'f1max', 'recall_at_1', 'recall_at_5',
+                     'max_recall_at_full_precision') and value is not None:
+            assert 0.0 <= value <= 1.0, key
+    walk(data)
+
+
+def test_outputs_and_printed_tables(report):
+    data, out, stdout = report
+    for name in ('report.md', 'map_top.png', 'trajectories.png', 'place_recognition_pr.png',
+                 'loop_table.png'):
+        assert os.path.isfile(os.path.join(out, name)), name
+    assert sorted(data['plots']) == ['loop_table.png', 'map_top.png',
+                                     'place_recognition_pr.png', 'trajectories.png']
+    assert 'Inter-session loop closure' in stdout and '| s01 | 5 | 1 | 1 | 1 | 2 |' in stdout
+    assert data['warnings'] == ['s00: no timing/s00.yaml'] or data['warnings'] == []
+
+
+def test_missing_inputs_fail_clearly(tmp_path, capsys):
+    assert cli.main(['--map', str(tmp_path), '--truth', str(tmp_path), '--quiet']) == 2
+    assert 'manifest.yaml' in capsys.readouterr().err
+
+
+def test_partial_map_still_evaluates(synthetic_dirs, tmp_path):
+    # Without loops, place recognition, timing and labels the report is still written.
+    import shutil
+    map_copy, truth_copy = str(tmp_path / 'map'), str(tmp_path / 'sim')
+    shutil.copytree(synthetic_dirs[0], map_copy)
+    shutil.copytree(synthetic_dirs[1], truth_copy)
+    for folder in ('loops', 'place_recognition', 'timing'):
+        shutil.rmtree(os.path.join(map_copy, folder))
+    os.remove(os.path.join(truth_copy, 'truth', 's00_labels.pcd'))
+    os.remove(os.path.join(truth_copy, 'truth', 's01_labels.pcd'))
+    out = str(tmp_path / 'out')
+    assert cli.main(['--map', map_copy, '--truth', truth_copy, '--out', out, '--quiet',
+                     '--no-plots']) == 0
+    with open(os.path.join(out, 'report.json')) as f:
+        data = json.load(f)
+    # No loops at all: submaps 0, 1, 2 overlap s00 (missed), 3 and 4 do not (new).
+    assert data['sessions'][1]['submaps_undefined_missed'] == 3
+    assert data['sessions'][1]['submaps_undefined_new'] == 2
+    assert data['dynamics']['evaluated'] is False and data['timing']['realtime_factor'] is None
+    assert any('loops/s01.csv' in w for w in data['warnings'])
+
+
+def test_parameters_from_the_manifest(report):
+    data, _, _ = report
+    assert data['dynamics']['kept_radius_m'] == 0.2      # max(0.2, submap voxel 0.1)
+    assert data['dynamics']['eval_range_m'] == 60.0      # the submap builder's, not odometry's
+    params = {'odometry': {'voxel_size_m': 1.5}, 'submap_builder': {'voxel_size_m': 0.25}}
+    assert cli.find_parameter(params, 'voxel_size_m') == 0.25
+    assert cli.find_parameter({'a': {'voxel_size_m': 0.3}}, 'voxel_size_m') == 0.3
+    assert cli.find_parameter({'a': {'x': 1.0}, 'b': {'x': 2.0}}, 'x') is None
+
+
+def test_truth_in_map_frame_is_written(report):
+    from multisession_mapper_eval import trajectory as tr
+    _, out, _ = report
+    t = tr.read_tum(os.path.join(out, 'truth_map_frame', 's01.tum'))
+    assert len(t) == 100
+    assert abs(t.positions[5][0] - 5.0) < 1e-6 and abs(t.positions[5][1] - 2.0) < 1e-6
