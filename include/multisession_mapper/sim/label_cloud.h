@@ -1,0 +1,44 @@
+// Labelled ground-truth cloud of a session (truth/<session>_labels.pcd, docs/simulator.md):
+// exact hit positions in the world frame with their class and object id, one point per voxel
+// (the first hit, in scan order, so the output does not depend on threads).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/sim/vlp16.h"
+
+namespace multisession_mapper {
+namespace sim {
+
+class LabelCloud {
+ public:
+  /// `voxel_m` > 0: keep the first point per cubic voxel of that size; 0: keep every point.
+  explicit LabelCloud(double voxel_m);
+
+  void Add(const TruthPoint& point);
+  void Add(const std::vector<TruthPoint>& points);
+  std::size_t size() const { return points_.size(); }
+  const std::vector<TruthPoint>& points() const { return points_; }
+
+  /// Binary PCD v0.7 with packed fields x y z (F4) label (U1) object_id (U4), 17 bytes/point.
+  core::Status WritePcd(const std::string& path) const;
+  /// Reads a file written by WritePcd (binary or ascii, same fields).
+  static core::StatusOr<std::vector<TruthPoint>> ReadPcd(const std::string& path);
+
+ private:
+  /// Open-addressing set of occupied voxel keys (linear probing; 0 marks an empty slot).
+  bool InsertKey(std::uint64_t key);
+
+  double voxel_m_;
+  std::vector<std::uint64_t> table_;
+  std::size_t table_used_ = 0;
+  std::vector<TruthPoint> points_;
+};
+
+}  // namespace sim
+}  // namespace multisession_mapper
