@@ -51,7 +51,15 @@ if [ -x "${bin}/offline_mapper" ] && [ -f "${data}/sessions.yaml" ]; then
   rm -rf "${map}"
   for bag in $(/usr/bin/python3 -c "import yaml,sys; [print(s['bag']) for s in yaml.safe_load(open(sys.argv[1]))['sessions']]" "${data}/sessions.yaml"); do
     msm_log "mapping ${bag}"
+    set +e
     "${bin}/offline_mapper" --bag "${data}/${bag}" --map "${map}"
+    code=$?
+    set -e
+    if [ ${code} -eq 3 ]; then
+      missing+=("merging sessions after the first into the map (issue 7): only the first session was mapped")
+      break
+    fi
+    [ ${code} -eq 0 ] || msm_die "offline_mapper failed on ${bag}"
   done
 else
   missing+=("offline_mapper (the mapping pipeline, issues 5-7) is not built yet: no map")

@@ -1,0 +1,59 @@
+// Registration target over a fixed point set (a submap, a reference scan): a nanoflann kd-tree
+// for nearest neighbours plus normals precomputed from the k nearest neighbours (PCA, see
+// local_plane.h). Used by IcpRegistration for submap-to-submap and scan-to-submap alignment,
+// where the target does not change between queries. Const queries are thread-safe.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "multisession_mapper/core/local_plane.h"
+#include "multisession_mapper/core/registration_target.h"
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/types.h"
+
+namespace multisession_mapper {
+namespace core {
+
+struct KdTreeTargetConfig {
+  /// Neighbours used for each point's normal (the point itself included). On dense scans the
+  /// neighbours of a point lie on its own ring (no normal, point-to-point is used): downsample
+  /// the target (0.1-0.3 m) first so that neighbourhoods span several rings.
+  int normal_neighbors = 20;
+  /// Neighbours farther than this are left out of the normal fit [m]; keeps normals local on
+  /// sparse far-range points.
+  double max_normal_radius_m = 1.5;
+  LocalPlaneCriteria plane;
+
+  Status Validate() const;
+};
+
+class KdTreeTarget : public RegistrationTarget {
+ public:
+  /// Builds the tree and the normals over `points` (copied). Fails on a bad config or when
+  /// `points` is empty.
+  static StatusOr<KdTreeTarget> Create(PointVector points,
+                                       const KdTreeTargetConfig& config = KdTreeTargetConfig());
+  KdTreeTarget(KdTreeTarget&&) noexcept;
+  KdTreeTarget& operator=(KdTreeTarget&&) noexcept;
+  ~KdTreeTarget() override;
+
+  bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
+                 TargetMatch* match) const override;
+  bool empty() const override;
+
+  /// Index of the nearest point and its squared distance [m^2]; false when empty.
+  bool Nearest(const Eigen::Vector3d& query, std::size_t* index, double* distance_sq) const;
+  const PointVector& points() const;
+  /// Fraction of points with a planar normal (diagnostics).
+  double PlanarFraction() const;
+
+ private:
+  struct Impl;
+  explicit KdTreeTarget(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,30 @@
+// Turns a mapped session into map contents (reference paper, section VI, map update). The first
+// session defines the map frame; later sessions are merged by the multi-session stage.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "multisession_mapper/core/map_store.h"
+#include "multisession_mapper/core/session_mapper.h"
+#include "multisession_mapper/core/status.h"
+
+namespace multisession_mapper {
+namespace core {
+
+/// Node id of a submap in the map's pose graph: session index * 1e6 + submap id.
+NodeId SubmapNodeId(std::size_t session_index, std::uint32_t submap_id);
+
+/// Files of a session that other modules produce (CSV and YAML text).
+struct SessionFiles {
+  std::string timing_yaml;
+  std::string place_recognition_csv;  ///< empty when there was no database to query
+};
+
+/// Adds the first session of a map: its frame becomes the map frame, its submap graph the map
+/// graph (submap 0 fixed). Fails when the map already has sessions.
+Status AddFirstSession(const SessionResult& session, const SessionRecord& record,
+                       const SessionFiles& files, MapContents* map);
+
+}  // namespace core
+}  // namespace multisession_mapper

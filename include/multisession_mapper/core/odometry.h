@@ -1,0 +1,139 @@
+// LiDAR odometry: scan-to-local-map registration in the style of KISS-ICP (Vizzo et al. 2023)
+// with point-to-plane residuals. Per scan:
+//   input filter -> de-skew (constant velocity, to the sensor frame at the scan stamp)
+//   -> voxel downsample (map resolution, then the coarser registration resolution)
+//   -> ICP of the registration points against the local VoxelHashMap from the
+//      constant-velocity prediction, correspondence distance / kernel from AdaptiveThreshold
+//   -> map-resolution points inserted into the local map at the estimated pose.
+// De-skewing runs before downsampling so that the returned scan (all filtered points) is
+// de-skewed for the submap builder and the dynamic-point ray casting. The scan is de-skewed
+// with the predicted velocity; if ICP finds a clearly different velocity (start-up, sharp
+// turn) it is de-skewed again with the estimate and ICP refined (refine_deskew). The very first
+// scan cannot be de-skewed (no velocity yet): it is returned as is, but the map copy is
+// replaced by a de-skewed one after the second scan.
+// Output: T_odom_sensor at each scan stamp; the odom frame is the sensor frame of the first
+// scan unless an initial pose is given.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "multisession_mapper/core/adaptive_threshold.h"
+#include "multisession_mapper/core/deskew.h"
+#include "multisession_mapper/core/icp_registration.h"
+#include "multisession_mapper/core/input_filter.h"
+#include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/voxel_hash_map.h"
+
+namespace multisession_mapper {
+namespace core {
+
+/// Everything the odometry needs; defaults are tuned for a VLP-16 at 10 Hz outdoors (up to
+/// 3 m/s and ~1.5 rad/s turns).
+struct OdometryConfig {
+  InputFilterConfig input_filter;  ///< range 1-100 m by default
+  DeskewConfig deskew;
+  /// Voxel of the downsample whose points go into the local map [m] (KISS-ICP: 0.5 * map
+  /// voxel).
+  double map_voxel_size_m = 0.5;
+  /// Coarser voxel of the ICP source points [m] (KISS-ICP: 1.5 * map voxel): fewer points,
+  /// same constraints.
+  double registration_voxel_size_m = 1.5;
+  /// Local map: 1 m voxels, 20 points each, 100 m around the robot.
+  VoxelHashMapConfig local_map;
+  /// ICP: max_correspondence_distance_m and kernel_scale_m are overridden per scan by the
+  /// adaptive threshold (below); the other fields apply.
+  IcpConfig icp;
+  AdaptiveThresholdConfig threshold;
+  /// Per scan: correspondence distance = factor * sigma, kernel scale = factor * sigma
+  /// (KISS-ICP: 3 and 1/3).
+  double correspondence_sigma_factor = 3.0;
+  double kernel_sigma_factor = 1.0 / 3.0;
+  /// After a gap longer than this between stamps [s] the velocity is reset to zero (bag
+  /// cut, dropped scans): predicting across it would do more harm than good.
+  double max_scan_gap_s = 0.5;
+  /// When the velocity estimated by ICP differs from the predicted one by more than these
+  /// over the sweep [m], [rad], the scan is de-skewed again with it and ICP refined from the
+  /// estimate (costs a second, short ICP; happens at start-up and at sharp turns).
+  bool refine_deskew = true;
+  double refine_min_translation_m = 0.02;
+  double refine_min_rotation_rad = 0.004;
+
+  Status Validate() const;
+};
+
+struct OdometryTiming {
+  double filter_ms = 0.0;
+  double deskew_ms = 0.0;
+  double downsample_ms = 0.0;
+  double registration_ms = 0.0;
+  double map_update_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct OdometryResult {
+  double stamp_s = 0.0;
+  Pose3 pose = Pose3::Identity();        ///< T_odom_sensor at the scan stamp
+  Pose3 prediction = Pose3::Identity();  ///< constant-velocity prediction (ICP initial guess)
+  /// true: ICP ran and succeeded. false on the first scan, or when ICP failed (then pose is
+  /// the prediction and the scan was not added to the map; `message` says why).
+  bool registered = false;
+  /// true: the scan was de-skewed a second time with the estimated velocity (refine_deskew).
+  bool refined = false;
+  std::string message;
+  /// Filtered scan, de-skewed, in the sensor frame at the stamp; all attributes kept.
+  LidarScan deskewed_scan;
+  /// Map-resolution downsample of deskewed_scan (sensor frame), what went into the map.
+  PointVector map_points;
+  IcpResult icp;         ///< valid when registered
+  double sigma_m = 0.0;  ///< adaptive threshold used for this scan
+  InputFilterStats filter_stats;
+  DeskewStats deskew_stats;
+  OdometryTiming timing;
+
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+class Odometry {
+ public:
+  static StatusOr<Odometry> Create(const OdometryConfig& config,
+                                   const Pose3& initial_pose = Pose3::Identity());
+
+  /// Processes one scan. Fails (and changes nothing) when the stamp does not increase, or no
+  /// point survives the input filter; an ICP failure is not an error (see registered).
+  StatusOr<OdometryResult> ProcessScan(const LidarScan& scan);
+
+  /// Pose of the last processed scan, T_odom_sensor.
+  const Pose3& pose() const { return pose_; }
+  /// Current twist estimate [m/s, rad/s] in the sensor frame (translation first).
+  const se3::Vector6d& velocity() const { return velocity_; }
+  /// Poses of all processed scans (TUM-ready).
+  const Trajectory& trajectory() const { return trajectory_; }
+  const VoxelHashMap& local_map() const { return local_map_; }
+  const OdometryConfig& config() const { return config_; }
+
+ private:
+  Odometry(const OdometryConfig& config, const Pose3& initial_pose, InputFilter filter,
+           Deskewer deskewer, VoxelHashMap map, IcpRegistration icp,
+           AdaptiveThreshold threshold);
+  void InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose);
+
+  OdometryConfig config_;
+  InputFilter filter_;
+  Deskewer deskewer_;
+  VoxelHashMap local_map_;
+  IcpRegistration icp_;
+  AdaptiveThreshold threshold_;
+  Pose3 pose_;
+  se3::Vector6d velocity_ = se3::Vector6d::Zero();  ///< over the last stamp interval
+  double last_stamp_s_ = 0.0;
+  bool has_scan_ = false;
+  Trajectory trajectory_;
+  /// The first scan with per-point time, kept until the first velocity estimate de-skews it.
+  std::optional<LidarScan> first_scan_;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,35 @@
+// What ICP registers against: anything that answers "nearest target point to q, with the
+// local surface normal there if the neighbourhood is planar". Implemented by the local voxel
+// map (odometry, VoxelHashMap) and by a kd-tree over a fixed point set (submap-to-submap
+// registration, KdTreeTarget), so the same IcpRegistration serves both.
+#pragma once
+
+#include <Eigen/Core>
+
+namespace multisession_mapper {
+namespace core {
+
+/// One target point matched to a query.
+struct TargetMatch {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   ///< target point [m], target frame
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  ///< unit normal when has_normal
+  bool has_normal = false;  ///< false: neighbourhood not planar, use point-to-point
+  double distance_sq = 0.0;  ///< squared distance query-point [m^2]
+};
+
+class RegistrationTarget {
+ public:
+  virtual ~RegistrationTarget() = default;
+
+  /// Nearest target point to `query` (target frame) closer than `max_distance_m`; false when
+  /// there is none. Implementations may cache normals, so concurrent calls are not allowed
+  /// unless the implementation says otherwise.
+  virtual bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
+                         TargetMatch* match) const = 0;
+
+  /// True when the target holds no point.
+  virtual bool empty() const = 0;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,102 @@
+// Single-session SLAM in submaps (reference paper, section IV): per scan, odometry and the
+// submap builder; per finished submap, an odometry edge, intra-session loop candidates by
+// origin distance (registered from the prior, validated by agreement and overlap) and, when a
+// loop is accepted, a pose graph optimisation. The offline runner and the nodelets both drive
+// this object; it owns no I/O.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "multisession_mapper/core/loop_record.h"
+#include "multisession_mapper/core/odometry.h"
+#include "multisession_mapper/core/pose_graph.h"
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/submap.h"
+#include "multisession_mapper/core/submap_builder.h"
+#include "multisession_mapper/core/submap_registration.h"
+
+namespace multisession_mapper {
+namespace core {
+
+struct IntraLoopConfig {
+  bool enabled = true;
+  /// Earlier submaps whose origin is within this distance of the new one are candidates [m].
+  double search_radius_m = 15.0;
+  /// Submaps closer in id than this are neighbours (already linked by odometry), not loops.
+  int min_id_gap = 3;
+  /// At most this many candidates (nearest first) per new submap.
+  int max_candidates = 3;
+  SubmapRegistrationConfig registration;
+
+  Status Validate() const;
+};
+
+struct SessionMapperConfig {
+  OdometryConfig odometry;
+  SubmapBuilderConfig submaps;
+  IntraLoopConfig intra_loops;
+  PoseGraphConfig pose_graph;
+  /// Odometry edge noise between consecutive submaps: sigma_t = base + per_m * distance [m],
+  /// sigma_r [rad].
+  double odometry_sigma_translation_m = 0.05;
+  double odometry_sigma_translation_per_m = 0.005;
+  double odometry_sigma_rotation_rad = 0.005;
+
+  Status Validate() const;
+};
+
+/// Per-stage timing samples, for the timing records of the map (medians are computed there).
+struct SessionTimings {
+  std::vector<double> odometry_ms;        ///< per scan: filter + de-skew + ICP + map update
+  std::vector<double> submap_building_ms;  ///< per scan
+  std::vector<double> intra_loop_s;       ///< per finished submap: candidate registrations
+  std::vector<double> optimisation_s;     ///< per pose graph solve
+};
+
+struct SessionResult {
+  std::string session;
+  /// Submaps with origins in the session frame (the sensor frame of the first scan),
+  /// optimised.
+  std::vector<Submap, Eigen::aligned_allocator<Submap>> submaps;
+  PoseGraph graph;          ///< node id = submap id
+  Trajectory trajectory;    ///< optimised sensor pose of every scan, session frame
+  Trajectory odometry;      ///< raw odometry of every scan
+  LoopRecords loops;        ///< intra-session candidates and their fate
+  SessionTimings timings;
+  std::size_t scans_processed = 0;
+  std::size_t scans_skipped = 0;
+};
+
+class SessionMapper {
+ public:
+  static StatusOr<SessionMapper> Create(const SessionMapperConfig& config,
+                                        const std::string& session);
+  SessionMapper(SessionMapper&&) noexcept;
+  SessionMapper& operator=(SessionMapper&&) noexcept;
+  ~SessionMapper();
+
+  /// Processes one raw scan. An error means the scan was skipped (the message says why: a
+  /// stamp that does not increase, no valid point); the session goes on.
+  Status AddScan(const LidarScan& raw_scan);
+
+  /// Last odometry result (pose, de-skewed scan) for publishing; null before the first scan.
+  const OdometryResult* last_odometry() const;
+  /// Id of the submap the last scan went into.
+  std::uint32_t current_submap_id() const;
+  /// Submaps finished so far (optimised origins).
+  std::size_t num_finished_submaps() const;
+
+  /// Closes the open submaps, runs their loop search and the final optimisation.
+  StatusOr<SessionResult> Finish();
+
+ private:
+  struct State;
+  explicit SessionMapper(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,159 @@
+#include "multisession_mapper/core/icp_registration.h"
+
+#include <cmath>
+#include <string>
+
+#include <Eigen/Cholesky>
+
+#include "multisession_mapper/core/se3.h"
+
+namespace multisession_mapper {
+namespace core {
+
+Status IcpConfig::Validate() const {
+  if (max_iterations < 1) {
+    return Status::Error("icp.max_iterations must be >= 1, got " + std::to_string(max_iterations));
+  }
+  if (!std::isfinite(convergence_translation_m) || convergence_translation_m < 0.0 ||
+      !std::isfinite(convergence_rotation_rad) || convergence_rotation_rad < 0.0) {
+    return Status::Error("icp.convergence_translation_m / convergence_rotation_rad must be >= 0");
+  }
+  if (!std::isfinite(max_correspondence_distance_m) || max_correspondence_distance_m <= 0.0) {
+    return Status::Error("icp.max_correspondence_distance_m must be > 0, got " +
+                         std::to_string(max_correspondence_distance_m));
+  }
+  if (kernel != RobustKernel::kNone && (!std::isfinite(kernel_scale_m) || kernel_scale_m <= 0.0)) {
+    return Status::Error("icp.kernel_scale_m must be > 0 with a robust kernel, got " +
+                         std::to_string(kernel_scale_m));
+  }
+  if (min_correspondences < 6) {
+    return Status::Error("icp.min_correspondences must be >= 6 (6 unknowns), got " +
+                         std::to_string(min_correspondences));
+  }
+  return Status::Ok();
+}
+
+StatusOr<IcpRegistration> IcpRegistration::Create(const IcpConfig& config) {
+  const Status status = config.Validate();
+  if (!status.ok()) return status;
+  return IcpRegistration(config);
+}
+
+StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
+                                              const RegistrationTarget& target,
+                                              const Pose3& initial_guess) const {
+  return Register(source, target, initial_guess, config_.max_correspondence_distance_m,
+                  config_.kernel_scale_m);
+}
+
+namespace {
+
+// IRLS weight w(r) = rho'(r) / r for the squared residual r2.
+double KernelWeight(RobustKernel kernel, double scale_sq, double r2) {
+  switch (kernel) {
+    case RobustKernel::kGemanMcClure: {
+      const double a = scale_sq / (scale_sq + r2);
+      return a * a;
+    }
+    case RobustKernel::kCauchy:
+      return 1.0 / (1.0 + r2 / scale_sq);
+    case RobustKernel::kNone:
+    default:
+      return 1.0;
+  }
+}
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+}  // namespace
+
+StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
+                                              const RegistrationTarget& target,
+                                              const Pose3& initial_guess,
+                                              double max_correspondence_distance_m,
+                                              double kernel_scale_m) const {
+  if (target.empty()) return Status::Error("icp: the target is empty");
+  if (source.size() < static_cast<std::size_t>(config_.min_correspondences)) {
+    return Status::Error("icp: only " + std::to_string(source.size()) +
+                         " source points, need at least " +
+                         std::to_string(config_.min_correspondences));
+  }
+  if (!se3::IsValid(initial_guess, 1e-4)) return Status::Error("icp: invalid initial guess");
+  if (!(max_correspondence_distance_m > 0.0) || !std::isfinite(max_correspondence_distance_m)) {
+    return Status::Error("icp: max correspondence distance must be > 0");
+  }
+  const double scale_sq =
+      (kernel_scale_m > 0.0 && std::isfinite(kernel_scale_m)) ? kernel_scale_m * kernel_scale_m
+                                                                : 1.0;
+  const RobustKernel kernel = kernel_scale_m > 0.0 ? config_.kernel : RobustKernel::kNone;
+
+  IcpResult result;
+  result.num_source = source.size();
+  Pose3 pose = se3::Normalized(initial_guess);
+  TargetMatch match;
+  using Matrix6d = Eigen::Matrix<double, 6, 6>;
+  using Vector6d = Eigen::Matrix<double, 6, 1>;
+  for (int iteration = 1; iteration <= config_.max_iterations; ++iteration) {
+    Matrix6d H = Matrix6d::Zero();
+    Vector6d g = Vector6d::Zero();
+    std::size_t inliers = 0;
+    std::size_t pairs = 0;  // inliers that entered the least squares
+    double sum_dist_sq = 0.0;
+    for (const Eigen::Vector3d& s : source) {
+      const Eigen::Vector3d p = pose * s;
+      if (!target.FindMatch(p, max_correspondence_distance_m, &match)) continue;
+      ++inliers;
+      sum_dist_sq += match.distance_sq;
+      if (!match.has_normal && !config_.point_to_point_fallback) continue;
+      ++pairs;
+      const Eigen::Vector3d diff = p - match.point;
+      if (match.has_normal) {
+        const double r = match.normal.dot(diff);
+        Vector6d J;
+        J.head<3>() = match.normal;
+        J.tail<3>() = p.cross(match.normal);
+        const double w = KernelWeight(kernel, scale_sq, r * r);
+        H.noalias() += w * J * J.transpose();
+        g.noalias() += (w * r) * J;
+      } else {
+        Eigen::Matrix<double, 3, 6> J;
+        J.leftCols<3>().setIdentity();
+        J.rightCols<3>() = -Skew(p);
+        const double w = KernelWeight(kernel, scale_sq, diff.squaredNorm());
+        H.noalias() += w * J.transpose() * J;
+        g.noalias() += w * J.transpose() * diff;
+      }
+    }
+    result.iterations = iteration;
+    result.num_inliers = inliers;
+    result.rmse_m = inliers > 0 ? std::sqrt(sum_dist_sq / static_cast<double>(inliers)) : 0.0;
+    result.hessian = H;
+    if (pairs < static_cast<std::size_t>(config_.min_correspondences)) {
+      return Status::Error("icp: only " + std::to_string(pairs) +
+                           " correspondences within " +
+                           std::to_string(max_correspondence_distance_m) + " m at iteration " +
+                           std::to_string(iteration));
+    }
+    // A tiny Levenberg term keeps degenerate directions (long corridors) from blowing up.
+    const double damping = 1e-9 * H.diagonal().maxCoeff() + 1e-12;
+    const Vector6d delta = -(H + damping * Matrix6d::Identity()).ldlt().solve(g);
+    if (!delta.allFinite()) return Status::Error("icp: non-finite Gauss-Newton update");
+    pose = se3::Exp(delta) * pose;
+    if (delta.head<3>().norm() < config_.convergence_translation_m &&
+        delta.tail<3>().norm() < config_.convergence_rotation_rad) {
+      result.converged = true;
+      break;
+    }
+  }
+  result.pose = se3::Normalized(pose);
+  result.fitness = static_cast<double>(result.num_inliers) / static_cast<double>(source.size());
+  if (!se3::IsValid(result.pose, 1e-6)) return Status::Error("icp: invalid resulting pose");
+  return result;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

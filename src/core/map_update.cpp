@@ -1,0 +1,41 @@
+#include "multisession_mapper/core/map_update.h"
+
+namespace multisession_mapper {
+namespace core {
+
+NodeId SubmapNodeId(std::size_t session_index, std::uint32_t submap_id) {
+  return static_cast<NodeId>(session_index) * 1000000 + submap_id;
+}
+
+Status AddFirstSession(const SessionResult& session, const SessionRecord& record,
+                       const SessionFiles& files, MapContents* map) {
+  if (!map->sessions.empty()) {
+    return Status::Error("the map already has sessions; '" + record.name +
+                         "' must be merged, not added as the first session");
+  }
+  if (session.submaps.empty()) return Status::Error("session '" + record.name + "' has no submaps");
+  map->sessions.push_back(record);
+  for (const Submap& submap : session.submaps) {
+    map->submaps.push_back(submap);
+    map->graph.SetNodePose(SubmapNodeId(0, submap.id), submap.T_map_submap);
+  }
+  map->graph.SetFixed(SubmapNodeId(0, session.submaps.front().id), true);
+  for (const PoseGraphEdge& edge : session.graph.edges()) {
+    PoseGraphEdge copy = edge;
+    copy.from = SubmapNodeId(0, static_cast<std::uint32_t>(edge.from));
+    copy.to = SubmapNodeId(0, static_cast<std::uint32_t>(edge.to));
+    StatusOr<std::size_t> added = map->graph.AddEdge(copy);
+    if (!added.ok()) return added.status();
+  }
+  map->trajectories[record.name] = session.trajectory;
+  map->odom_trajectories[record.name] = session.odometry;
+  map->files["loops/" + record.name + ".csv"] = LoopRecordsToCsv(session.loops);
+  map->files["timing/" + record.name + ".yaml"] = files.timing_yaml;
+  if (!files.place_recognition_csv.empty()) {
+    map->files["place_recognition/" + record.name + ".csv"] = files.place_recognition_csv;
+  }
+  return Status::Ok();
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,214 @@
+#include "multisession_mapper/core/odometry.h"
+
+#include <chrono>
+#include <cmath>
+#include <string>
+#include <utility>
+
+#include "multisession_mapper/core/voxel_downsample.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  /// Milliseconds since construction or the previous Lap().
+  double Lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - start_).count();
+    start_ = now;
+    return ms;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace
+
+Status OdometryConfig::Validate() const {
+  Status status = input_filter.Validate();
+  if (!status.ok()) return status;
+  if (!(status = deskew.Validate()).ok()) return status;
+  if (!(status = local_map.Validate()).ok()) return status;
+  if (!(status = icp.Validate()).ok()) return status;
+  if (!(status = threshold.Validate()).ok()) return status;
+  if (!std::isfinite(map_voxel_size_m) || map_voxel_size_m <= 0.0) {
+    return Status::Error("odometry.map_voxel_size_m must be > 0, got " +
+                         std::to_string(map_voxel_size_m));
+  }
+  if (!std::isfinite(registration_voxel_size_m) ||
+      registration_voxel_size_m < map_voxel_size_m) {
+    return Status::Error("odometry.registration_voxel_size_m must be >= map_voxel_size_m, got " +
+                         std::to_string(registration_voxel_size_m));
+  }
+  if (!std::isfinite(correspondence_sigma_factor) || correspondence_sigma_factor <= 0.0 ||
+      !std::isfinite(kernel_sigma_factor) || kernel_sigma_factor <= 0.0) {
+    return Status::Error("odometry.correspondence_sigma_factor / kernel_sigma_factor must be > 0");
+  }
+  if (!std::isfinite(refine_min_translation_m) || refine_min_translation_m < 0.0 ||
+      !std::isfinite(refine_min_rotation_rad) || refine_min_rotation_rad < 0.0) {
+    return Status::Error(
+        "odometry.refine_min_translation_m / refine_min_rotation_rad must be >= 0");
+  }
+  if (!std::isfinite(max_scan_gap_s) || max_scan_gap_s <= 0.0) {
+    return Status::Error("odometry.max_scan_gap_s must be > 0, got " +
+                         std::to_string(max_scan_gap_s));
+  }
+  return Status::Ok();
+}
+
+StatusOr<Odometry> Odometry::Create(const OdometryConfig& config, const Pose3& initial_pose) {
+  const Status status = config.Validate();
+  if (!status.ok()) return status;
+  if (!se3::IsValid(initial_pose, 1e-4)) return Status::Error("odometry: invalid initial pose");
+  // Every Create below validates a sub-config that Validate() already checked.
+  return Odometry(config, se3::Normalized(initial_pose),
+                  InputFilter::Create(config.input_filter).value(),
+                  Deskewer::Create(config.deskew).value(),
+                  VoxelHashMap::Create(config.local_map).value(),
+                  IcpRegistration::Create(config.icp).value(),
+                  AdaptiveThreshold::Create(config.threshold).value());
+}
+
+Odometry::Odometry(const OdometryConfig& config, const Pose3& initial_pose, InputFilter filter,
+                   Deskewer deskewer, VoxelHashMap map, IcpRegistration icp,
+                   AdaptiveThreshold threshold)
+    : config_(config),
+      filter_(std::move(filter)),
+      deskewer_(std::move(deskewer)),
+      local_map_(std::move(map)),
+      icp_(std::move(icp)),
+      threshold_(std::move(threshold)),
+      pose_(initial_pose) {}
+
+StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
+  if (!std::isfinite(scan.stamp_s)) return Status::Error("odometry: non-finite scan stamp");
+  if (has_scan_ && scan.stamp_s <= last_stamp_s_) {
+    return Status::Error("odometry: scan stamp " + std::to_string(scan.stamp_s) +
+                         " s does not increase (previous " + std::to_string(last_stamp_s_) +
+                         " s)");
+  }
+  Stopwatch total;
+  Stopwatch watch;
+  OdometryResult result;
+  result.stamp_s = scan.stamp_s;
+
+  LidarScan filtered = filter_.Apply(scan, &result.filter_stats);
+  result.timing.filter_ms = watch.Lap();
+  if (filtered.points.empty()) {
+    return Status::Error("odometry: no point of the scan at " + std::to_string(scan.stamp_s) +
+                         " s survived the input filter");
+  }
+
+  // Constant-velocity model; a long gap makes the last velocity meaningless.
+  const double dt = has_scan_ ? scan.stamp_s - last_stamp_s_ : 0.0;
+  const bool continuous = has_scan_ && dt <= config_.max_scan_gap_s;
+  // Constant-velocity model, for the stamp interval and for this sweep alike.
+  const se3::Vector6d velocity = continuous ? velocity_ : se3::Vector6d::Zero();
+  result.prediction = se3::Normalized(pose_ * se3::Exp(velocity * dt));
+
+  PointVector source;
+  // De-skews with `v` and downsamples: map points, then the coarser registration points.
+  const auto prepare = [&](const se3::Vector6d& v) {
+    Stopwatch prepare_watch;
+    result.deskewed_scan = deskewer_.Apply(filtered, v, &result.deskew_stats);
+    result.timing.deskew_ms += prepare_watch.Lap();
+    result.map_points =
+        VoxelDownsample(ScanToPointVector(result.deskewed_scan), config_.map_voxel_size_m);
+    source = VoxelDownsample(result.map_points, config_.registration_voxel_size_m);
+    result.timing.downsample_ms += prepare_watch.Lap();
+  };
+  prepare(velocity);
+  watch.Lap();
+
+  const double sigma = threshold_.Sigma();
+  result.sigma_m = sigma;
+  const double max_distance_m = config_.correspondence_sigma_factor * sigma;
+  const double kernel_m = config_.kernel_sigma_factor * sigma;
+  Pose3 estimate = result.prediction;
+  bool add_to_map = true;
+  if (has_scan_ && !local_map_.empty()) {
+    StatusOr<IcpResult> icp =
+        icp_.Register(source, local_map_, result.prediction, max_distance_m, kernel_m);
+    if (icp.ok()) {
+      result.icp = icp.value();
+      result.registered = true;
+      estimate = icp.value().pose;
+    } else {
+      result.message = icp.status().message();
+      add_to_map = false;
+    }
+  }
+  result.timing.registration_ms += watch.Lap();
+
+  se3::Vector6d estimated_velocity = velocity;
+  if (result.registered && continuous && dt > 0.0) {
+    estimated_velocity = Deskewer::VelocityFromMotion(se3::Between(pose_, estimate), dt);
+    // The prediction's velocity was wrong over this sweep (start, sharp turn): de-skew again
+    // with the estimated one and refine, so that the map only receives well de-skewed points.
+    const double sweep_s = result.deskew_stats.max_time_offset_s;
+    const Pose3 mismatch = se3::Exp((estimated_velocity - velocity) * sweep_s);
+    if (config_.refine_deskew && result.deskew_stats.applied &&
+        (se3::TranslationNorm(mismatch) > config_.refine_min_translation_m ||
+         se3::RotationAngleRad(mismatch) > config_.refine_min_rotation_rad)) {
+      prepare(estimated_velocity);
+      watch.Lap();
+      StatusOr<IcpResult> refined =
+          icp_.Register(source, local_map_, estimate, max_distance_m, kernel_m);
+      if (refined.ok()) {
+        result.icp = refined.value();
+        estimate = refined.value().pose;
+        estimated_velocity = Deskewer::VelocityFromMotion(se3::Between(pose_, estimate), dt);
+      }
+      result.refined = true;
+      result.timing.registration_ms += watch.Lap();
+    }
+  }
+
+  if (result.registered) {
+    threshold_.Update(se3::Between(result.prediction, estimate), se3::Between(pose_, estimate));
+    velocity_ = continuous ? estimated_velocity : se3::Vector6d::Zero();
+  } else if (has_scan_) {
+    velocity_ = velocity;  // keep predicting with the model through an ICP failure
+  }
+  result.pose = estimate;
+  watch.Lap();
+  if (add_to_map) {
+    if (first_scan_.has_value() && result.registered) {
+      // The first scan went into the map un-de-skewed (no velocity yet): replace it by its
+      // de-skewed version now that the velocity is known.
+      local_map_.Clear();
+      InsertIntoMap(VoxelDownsample(
+                        ScanToPointVector(deskewer_.Apply(*first_scan_, velocity_)),
+                        config_.map_voxel_size_m),
+                    trajectory_.front().pose);
+      first_scan_.reset();
+    }
+    InsertIntoMap(result.map_points, estimate);
+    if (!has_scan_ && filtered.has_time && config_.deskew.enabled) first_scan_ = filtered;
+  }
+  result.timing.map_update_ms = watch.Lap();
+
+  pose_ = estimate;
+  last_stamp_s_ = scan.stamp_s;
+  has_scan_ = true;
+  StampedPose stamped;
+  stamped.stamp_s = scan.stamp_s;
+  stamped.pose = estimate;
+  trajectory_.push_back(stamped);
+  result.timing.total_ms = total.Lap();
+  return result;
+}
+
+void Odometry::InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose) {
+  PointVector in_map;
+  in_map.reserve(points_in_sensor.size());
+  for (const Eigen::Vector3d& p : points_in_sensor) in_map.push_back(pose * p);
+  local_map_.Update(in_map, pose.translation());
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,135 @@
+#include "multisession_mapper/core/pipeline_config.h"
+
+#include <fstream>
+#include <sstream>
+#include <variant>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+using Field = std::variant<double*, int*, bool*>;
+struct Key {
+  const char* section;
+  const char* name;
+  Field field;
+};
+
+// The one table of keys: reading, writing and the shipped YAML all follow it.
+std::vector<Key> Keys(PipelineConfig* c) {
+  SessionMapperConfig& s = c->session;
+  InSessionDynamicFilterConfig& d = s.submaps.dynamic_filter;
+  SubmapRegistrationConfig& r = s.intra_loops.registration;
+  return {
+      {"input_filter", "min_range_m", &s.odometry.input_filter.min_range_m},
+      {"input_filter", "max_range_m", &s.odometry.input_filter.max_range_m},
+      {"odometry", "map_voxel_size_m", &s.odometry.map_voxel_size_m},
+      {"odometry", "registration_voxel_size_m", &s.odometry.registration_voxel_size_m},
+      {"odometry", "max_scan_gap_s", &s.odometry.max_scan_gap_s},
+      {"submap", "max_translation_m", &s.submaps.max_translation_m},
+      {"submap", "max_rotation_rad", &s.submaps.max_rotation_rad},
+      {"submap", "voxel_size_m", &s.submaps.voxel_size_m},
+      {"submap", "max_point_range_m", &s.submaps.max_point_range_m},
+      {"in_session_dynamics", "enabled", &d.enabled},
+      {"in_session_dynamics", "margin_base_m", &d.margin_base_m},
+      {"in_session_dynamics", "margin_per_m", &d.margin_per_m},
+      {"in_session_dynamics", "max_check_range_m", &d.max_check_range_m},
+      {"in_session_dynamics", "check_every_n_scans", &d.check_every_n_scans},
+      {"in_session_dynamics", "min_seen_through", &d.min_seen_through},
+      {"in_session_dynamics", "min_seen_through_ratio", &d.min_seen_through_ratio},
+      {"in_session_dynamics", "min_consecutive_seen_through", &d.min_consecutive_seen_through},
+      {"in_session_dynamics", "tail_m", &d.tail_m},
+      {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
+      {"intra_loops", "enabled", &s.intra_loops.enabled},
+      {"intra_loops", "search_radius_m", &s.intra_loops.search_radius_m},
+      {"intra_loops", "min_id_gap", &s.intra_loops.min_id_gap},
+      {"intra_loops", "max_candidates", &s.intra_loops.max_candidates},
+      {"intra_loops", "overlap_distance_m", &r.overlap_distance_m},
+      {"intra_loops", "min_overlap_ratio", &r.min_overlap_ratio},
+      {"intra_loops", "max_correction_m", &r.max_correction_m},
+      {"intra_loops", "max_correction_rad", &r.max_correction_rad},
+      {"intra_loops", "loop_sigma_translation_m", &r.loop_sigma_translation_m},
+      {"intra_loops", "loop_sigma_rotation_rad", &r.loop_sigma_rotation_rad},
+      {"pose_graph", "loop_kernel_scale", &s.pose_graph.loop_kernel_scale},
+      {"pose_graph", "loop_outlier_chi2", &s.pose_graph.loop_outlier_chi2},
+      {"pose_graph", "odometry_sigma_translation_m", &s.odometry_sigma_translation_m},
+      {"pose_graph", "odometry_sigma_translation_per_m", &s.odometry_sigma_translation_per_m},
+      {"pose_graph", "odometry_sigma_rotation_rad", &s.odometry_sigma_rotation_rad},
+  };
+}
+
+}  // namespace
+
+StatusOr<PipelineConfig> PipelineConfigFromYaml(const std::string& yaml_text,
+                                                const std::string& source) {
+  PipelineConfig config;
+  try {
+    const YAML::Node root = YAML::Load(yaml_text);
+    if (root.IsNull()) return config;
+    if (!root.IsMap()) return Status::Error(source + ": the configuration must be a YAML mapping");
+    std::vector<Key> keys = Keys(&config);
+    for (auto section = root.begin(); section != root.end(); ++section) {
+      const std::string section_name = section->first.as<std::string>();
+      if (!section->second.IsMap()) {
+        return Status::Error(source + ": section '" + section_name + "' must be a mapping");
+      }
+      for (auto entry = section->second.begin(); entry != section->second.end(); ++entry) {
+        const std::string name = entry->first.as<std::string>();
+        bool known = false;
+        for (Key& key : keys) {
+          if (section_name != key.section || name != key.name) continue;
+          known = true;
+          try {
+            std::visit([&](auto* field) {
+              *field = entry->second.as<std::remove_pointer_t<decltype(field)>>();
+            }, key.field);
+          } catch (const YAML::Exception&) {
+            return Status::Error(source + ": " + section_name + "." + name +
+                                 " has a value of the wrong type");
+          }
+        }
+        if (!known) {
+          return Status::Error(source + ": unknown key '" + section_name + "." + name + "'");
+        }
+      }
+    }
+  } catch (const YAML::Exception& e) {
+    return Status::Error(source + ": not valid YAML (" + e.what() + ")");
+  }
+  Status valid = config.Validate();
+  if (!valid.ok()) return Status::Error(source + ": " + valid.message());
+  return config;
+}
+
+StatusOr<PipelineConfig> LoadPipelineConfig(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Status::Error("cannot open configuration file '" + path + "'");
+  std::stringstream text;
+  text << in.rdbuf();
+  return PipelineConfigFromYaml(text.str(), path);
+}
+
+std::string PipelineConfigToYaml(const PipelineConfig& config) {
+  PipelineConfig copy = config;
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  std::string open_section;
+  for (const Key& key : Keys(&copy)) {
+    if (open_section != key.section) {
+      if (!open_section.empty()) out << YAML::EndMap;
+      out << YAML::Key << key.section << YAML::Value << YAML::BeginMap;
+      open_section = key.section;
+    }
+    out << YAML::Key << key.name << YAML::Value;
+    std::visit([&](auto* field) { out << *field; }, key.field);
+  }
+  if (!open_section.empty()) out << YAML::EndMap;
+  out << YAML::EndMap;
+  return out.c_str();
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,266 @@
+#include "multisession_mapper/core/session_mapper.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "multisession_mapper/core/se3.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+Status IntraLoopConfig::Validate() const {
+  if (!(search_radius_m > 0.0)) return Status::Error("intra_loops.search_radius_m must be > 0");
+  if (min_id_gap < 1) return Status::Error("intra_loops.min_id_gap must be >= 1");
+  if (max_candidates < 1) return Status::Error("intra_loops.max_candidates must be >= 1");
+  return registration.Validate();
+}
+
+Status SessionMapperConfig::Validate() const {
+  for (const Status& s : {odometry.Validate(), submaps.Validate(), intra_loops.Validate(),
+                          pose_graph.Validate()}) {
+    if (!s.ok()) return s;
+  }
+  if (!(odometry_sigma_translation_m > 0.0) || !(odometry_sigma_translation_per_m >= 0.0) ||
+      !(odometry_sigma_rotation_rad > 0.0)) {
+    return Status::Error("odometry edge sigmas must be > 0");
+  }
+  return Status::Ok();
+}
+
+struct SessionMapper::State {
+  SessionMapperConfig config;
+  std::string session;
+  Odometry odometry;
+  SubmapBuilder builder;
+  SubmapRegistration registration;
+  PoseGraph graph;
+  std::vector<Submap, Eigen::aligned_allocator<Submap>> submaps;  // finished, by id
+  std::vector<Pose3, Eigen::aligned_allocator<Pose3>> odom_origins;  // by id
+  std::map<std::uint32_t, SubmapTarget> targets;  // registration targets, built on demand
+  LoopRecords loops;
+  SessionTimings timings;
+  Trajectory odometry_trajectory;
+  bool has_last = false;
+  OdometryResult last;
+  std::size_t processed = 0;
+  std::size_t skipped = 0;
+
+  State(const SessionMapperConfig& c, const std::string& s, Odometry o, SubmapBuilder b,
+        SubmapRegistration r)
+      : config(c), session(s), odometry(std::move(o)), builder(std::move(b)),
+        registration(std::move(r)), graph(c.pose_graph) {}
+
+  // Current estimate of an odometry-frame pose, through the correction of the latest
+  // optimised submap (later submaps follow the optimised ones rigidly).
+  Pose3 CorrectedOrigin(std::uint32_t id) const {
+    if (graph.HasNode(id)) return graph.NodePose(id);
+    if (submaps.empty()) return odom_origins[id];
+    const std::uint32_t last_id = submaps.back().id;
+    const Pose3 correction = graph.NodePose(last_id) * odom_origins[last_id].inverse();
+    return correction * odom_origins[id];
+  }
+
+  const SubmapTarget* Target(std::uint32_t id) {
+    auto it = targets.find(id);
+    if (it != targets.end()) return &it->second;
+    StatusOr<SubmapTarget> target = SubmapTarget::Create(submaps[id].points, config.intra_loops.registration);
+    if (!target.ok()) return nullptr;
+    return &targets.emplace(id, std::move(target.value())).first->second;
+  }
+
+  void AddFinishedSubmap(Submap submap) {
+    const std::uint32_t id = submap.id;
+    odom_origins.push_back(submap.T_map_submap);
+    const Pose3 estimate = submaps.empty() ? submap.T_map_submap : CorrectedOrigin(id);
+    graph.SetNodePose(id, estimate);
+    if (id == 0) graph.SetFixed(0, true);
+    if (id > 0) {
+      PoseGraphEdge edge;
+      edge.from = id - 1;
+      edge.to = id;
+      edge.T_from_to = se3::Between(odom_origins[id - 1], odom_origins[id]);
+      const double sigma_t = config.odometry_sigma_translation_m +
+                             config.odometry_sigma_translation_per_m * submaps.back().length_m;
+      edge.information.setZero();
+      edge.information.diagonal() << Eigen::Vector3d::Constant(1.0 / (sigma_t * sigma_t)),
+          Eigen::Vector3d::Constant(1.0 / (config.odometry_sigma_rotation_rad *
+                                           config.odometry_sigma_rotation_rad));
+      graph.AddEdge(edge);
+    }
+    submap.T_map_submap = estimate;
+    submaps.push_back(std::move(submap));
+    SearchIntraLoops(id);
+  }
+
+  void SearchIntraLoops(std::uint32_t id) {
+    if (!config.intra_loops.enabled) return;
+    const auto start = std::chrono::steady_clock::now();
+    const Pose3 current = graph.NodePose(id);
+    std::vector<std::pair<double, std::uint32_t>> candidates;
+    for (const Submap& other : submaps) {
+      if (static_cast<int>(id) - static_cast<int>(other.id) < config.intra_loops.min_id_gap) continue;
+      const double distance =
+          (graph.NodePose(other.id).translation() - current.translation()).norm();
+      if (distance < config.intra_loops.search_radius_m) candidates.emplace_back(distance, other.id);
+    }
+    std::sort(candidates.begin(), candidates.end());
+    if (static_cast<int>(candidates.size()) > config.intra_loops.max_candidates) {
+      candidates.resize(config.intra_loops.max_candidates);
+    }
+    bool accepted_any = false;
+    for (const auto& [distance, other] : candidates) {
+      LoopRecord record;
+      record.kind = LoopKind::kIntra;
+      record.current_session = session;
+      record.current_submap = id;
+      record.history_session = session;
+      record.history_submap = other;
+      const SubmapTarget* target = Target(other);
+      if (target == nullptr) {
+        record.status = LoopStatus::kRejected;
+        record.reason = "history submap has no points";
+        loops.push_back(record);
+        continue;
+      }
+      const Pose3 prior = se3::Between(graph.NodePose(other), current);
+      const SubmapRegistrationResult result =
+          registration.Register(submaps[id].points, *target, prior);
+      record.overlap_ratio = result.overlap_ratio;
+      record.has_pose = true;
+      record.T_history_current = result.T_target_source;
+      record.status = result.accepted ? LoopStatus::kAccepted : LoopStatus::kRejected;
+      record.reason = result.reason;
+      loops.push_back(record);
+      if (!result.accepted) continue;
+      PoseGraphEdge edge;
+      edge.from = other;
+      edge.to = id;
+      edge.T_from_to = result.T_target_source;
+      edge.information = result.information;
+      edge.kind = EdgeKind::kIntraLoop;
+      accepted_any = graph.AddEdge(edge).ok() || accepted_any;
+    }
+    timings.intra_loop_s.push_back(SecondsSince(start));
+    if (accepted_any) Optimise();
+  }
+
+  void Optimise() {
+    const auto start = std::chrono::steady_clock::now();
+    StatusOr<PoseGraphSummary> summary = graph.Optimize();
+    timings.optimisation_s.push_back(SecondsSince(start));
+    if (!summary.ok()) return;
+    // Loops the graph switched off as outliers are rejected after all.
+    for (std::size_t index : summary.value().rejected_edges) {
+      const PoseGraphEdge& edge = graph.edges()[index];
+      for (LoopRecord& record : loops) {
+        if (record.status == LoopStatus::kAccepted && record.kind == LoopKind::kIntra &&
+            record.history_submap == edge.from && record.current_submap == edge.to) {
+          record.status = LoopStatus::kRejected;
+          record.reason = "rejected by the pose graph (inconsistent with the other edges)";
+        }
+      }
+    }
+  }
+
+  void DrainBuilder() {
+    for (Submap& submap : builder.TakeFinished()) AddFinishedSubmap(std::move(submap));
+  }
+};
+
+SessionMapper::SessionMapper(std::unique_ptr<State> state) : state_(std::move(state)) {}
+SessionMapper::SessionMapper(SessionMapper&&) noexcept = default;
+SessionMapper& SessionMapper::operator=(SessionMapper&&) noexcept = default;
+SessionMapper::~SessionMapper() = default;
+
+StatusOr<SessionMapper> SessionMapper::Create(const SessionMapperConfig& config,
+                                              const std::string& session) {
+  Status s = config.Validate();
+  if (!s.ok()) return s;
+  StatusOr<Odometry> odometry = Odometry::Create(config.odometry);
+  if (!odometry.ok()) return odometry.status();
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config.submaps, session);
+  if (!builder.ok()) return builder.status();
+  StatusOr<SubmapRegistration> registration =
+      SubmapRegistration::Create(config.intra_loops.registration);
+  if (!registration.ok()) return registration.status();
+  return SessionMapper(std::make_unique<State>(config, session, std::move(odometry.value()),
+                                               std::move(builder.value()),
+                                               std::move(registration.value())));
+}
+
+Status SessionMapper::AddScan(const LidarScan& raw_scan) {
+  State& st = *state_;
+  StatusOr<OdometryResult> result = st.odometry.ProcessScan(raw_scan);
+  if (!result.ok()) {
+    ++st.skipped;
+    return result.status();
+  }
+  ++st.processed;
+  st.timings.odometry_ms.push_back(result.value().timing.total_ms);
+  StampedPose sp;
+  sp.stamp_s = result.value().stamp_s;
+  sp.pose = result.value().pose;
+  st.odometry_trajectory.push_back(sp);
+
+  const auto start = std::chrono::steady_clock::now();
+  st.builder.AddScan(result.value().deskewed_scan, result.value().pose);
+  st.timings.submap_building_ms.push_back(SecondsSince(start) * 1e3);
+  st.last = std::move(result.value());
+  st.has_last = true;
+  st.DrainBuilder();
+  return Status::Ok();
+}
+
+const OdometryResult* SessionMapper::last_odometry() const {
+  return state_->has_last ? &state_->last : nullptr;
+}
+
+std::uint32_t SessionMapper::current_submap_id() const {
+  return state_->builder.current_submap_id();
+}
+
+std::size_t SessionMapper::num_finished_submaps() const { return state_->submaps.size(); }
+
+StatusOr<SessionResult> SessionMapper::Finish() {
+  State& st = *state_;
+  st.builder.FinishSession();
+  st.DrainBuilder();
+  if (st.submaps.empty()) {
+    return Status::Error("session '" + st.session + "' produced no submap (no usable scan)");
+  }
+  st.Optimise();
+  SessionResult result;
+  result.session = st.session;
+  for (Submap& submap : st.submaps) {
+    submap.T_map_submap = st.graph.NodePose(submap.id);
+    for (const SubmapScanRecord& scan : submap.scans) {
+      StampedPose sp;
+      sp.stamp_s = scan.stamp_s;
+      sp.pose = submap.T_map_submap * scan.T_submap_sensor;
+      result.trajectory.push_back(sp);
+    }
+  }
+  std::sort(result.trajectory.begin(), result.trajectory.end(),
+            [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
+  result.submaps = std::move(st.submaps);
+  result.graph = st.graph;
+  result.odometry = st.odometry_trajectory;
+  result.loops = st.loops;
+  result.timings = st.timings;
+  result.scans_processed = st.processed;
+  result.scans_skipped = st.skipped;
+  st.submaps.clear();
+  st.targets.clear();
+  return result;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

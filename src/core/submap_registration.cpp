@@ -1,0 +1,110 @@
+#include "multisession_mapper/core/submap_registration.h"
+
+#include <cmath>
+
+#include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/voxel_downsample.h"
+
+namespace multisession_mapper {
+namespace core {
+
+Status SubmapRegistrationConfig::Validate() const {
+  if (!(source_voxel_m > 0.0) || !(target_voxel_m > 0.0)) {
+    return Status::Error("submap_registration voxel sizes must be > 0");
+  }
+  if (correspondence_schedule_m.empty()) {
+    return Status::Error("submap_registration.correspondence_schedule_m must not be empty");
+  }
+  for (double d : correspondence_schedule_m) {
+    if (!(d > 0.0)) return Status::Error("submap_registration correspondence distances must be > 0");
+  }
+  if (!(overlap_distance_m > 0.0)) return Status::Error("submap_registration.overlap_distance_m must be > 0");
+  if (!(min_overlap_ratio >= 0.0 && min_overlap_ratio <= 1.0)) {
+    return Status::Error("submap_registration.min_overlap_ratio must be in [0, 1]");
+  }
+  if (!(max_correction_m > 0.0) || !(max_correction_rad > 0.0)) {
+    return Status::Error("submap_registration max corrections must be > 0");
+  }
+  if (!(loop_sigma_translation_m > 0.0) || !(loop_sigma_rotation_rad > 0.0)) {
+    return Status::Error("submap_registration loop sigmas must be > 0");
+  }
+  Status s = icp.Validate();
+  if (!s.ok()) return s;
+  return target.Validate();
+}
+
+StatusOr<SubmapTarget> SubmapTarget::Create(const PointVector& points,
+                                            const SubmapRegistrationConfig& config) {
+  StatusOr<KdTreeTarget> tree =
+      KdTreeTarget::Create(VoxelDownsample(points, config.target_voxel_m), config.target);
+  if (!tree.ok()) return tree.status();
+  return SubmapTarget(std::make_shared<KdTreeTarget>(std::move(tree.value())));
+}
+
+StatusOr<SubmapRegistration> SubmapRegistration::Create(const SubmapRegistrationConfig& config) {
+  Status s = config.Validate();
+  if (!s.ok()) return s;
+  StatusOr<IcpRegistration> icp = IcpRegistration::Create(config.icp);
+  if (!icp.ok()) return icp.status();
+  return SubmapRegistration(config, std::move(icp.value()));
+}
+
+double SubmapRegistration::OverlapRatio(const PointVector& source_points,
+                                        const SubmapTarget& target,
+                                        const Pose3& T_target_source) const {
+  if (source_points.empty()) return 0.0;
+  const double max_sq = config_.overlap_distance_m * config_.overlap_distance_m;
+  std::size_t overlapping = 0;
+  for (const Eigen::Vector3d& p : source_points) {
+    std::size_t index;
+    double distance_sq;
+    if (target.tree().Nearest(T_target_source * p, &index, &distance_sq) && distance_sq <= max_sq) {
+      ++overlapping;
+    }
+  }
+  return static_cast<double>(overlapping) / source_points.size();
+}
+
+SubmapRegistrationResult SubmapRegistration::Register(const PointVector& source_points,
+                                                      const SubmapTarget& target,
+                                                      const Pose3& prior) const {
+  SubmapRegistrationResult result;
+  const PointVector source = VoxelDownsample(source_points, config_.source_voxel_m);
+  Pose3 estimate = prior;
+  for (double distance : config_.correspondence_schedule_m) {
+    StatusOr<IcpResult> icp = icp_.Register(source, target.tree(), estimate, distance,
+                                            std::min(config_.icp.kernel_scale_m, distance / 3.0));
+    if (!icp.ok()) {
+      result.reason = "icp failed: " + icp.status().message();
+      return result;
+    }
+    estimate = icp.value().pose;
+    result.icp = icp.value();
+  }
+  result.T_target_source = estimate;
+  const Pose3 correction = se3::Between(prior, estimate);
+  result.correction_m = se3::TranslationNorm(correction);
+  result.correction_rad = se3::RotationAngleRad(correction);
+  result.overlap_ratio = OverlapRatio(source_points, target, estimate);
+  result.information.setZero();
+  result.information.diagonal() << Eigen::Vector3d::Constant(
+      1.0 / (config_.loop_sigma_translation_m * config_.loop_sigma_translation_m)),
+      Eigen::Vector3d::Constant(
+          1.0 / (config_.loop_sigma_rotation_rad * config_.loop_sigma_rotation_rad));
+  if (result.correction_m > config_.max_correction_m ||
+      result.correction_rad > config_.max_correction_rad) {
+    result.reason = "disagrees with the prior (" + std::to_string(result.correction_m) + " m, " +
+                    std::to_string(result.correction_rad) + " rad)";
+    return result;
+  }
+  if (result.overlap_ratio < config_.min_overlap_ratio) {
+    result.reason = "overlap " + std::to_string(result.overlap_ratio) + " below " +
+                    std::to_string(config_.min_overlap_ratio);
+    return result;
+  }
+  result.accepted = true;
+  return result;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

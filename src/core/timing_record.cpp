@@ -1,0 +1,55 @@
+#include "multisession_mapper/core/timing_record.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <yaml-cpp/yaml.h>
+
+namespace multisession_mapper {
+namespace core {
+
+TimingSummary Summarize(std::vector<double> samples) {
+  TimingSummary summary;
+  summary.samples = samples.size();
+  if (samples.empty()) return summary;
+  std::sort(samples.begin(), samples.end());
+  const std::size_t n = samples.size();
+  summary.median = n % 2 ? samples[n / 2] : 0.5 * (samples[n / 2 - 1] + samples[n / 2]);
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.95 * n));
+  summary.p95 = samples[std::min(n - 1, rank == 0 ? 0 : rank - 1)];
+  return summary;
+}
+
+namespace {
+void Emit(YAML::Emitter* out, const char* name, const std::vector<double>& samples) {
+  const TimingSummary s = Summarize(samples);
+  *out << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key
+       << "median" << YAML::Value << s.median << YAML::Key << "p95" << YAML::Value << s.p95
+       << YAML::Key << "samples" << YAML::Value << s.samples << YAML::EndMap;
+}
+}  // namespace
+
+std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run) {
+  YAML::Emitter out;
+  out.SetDoublePrecision(6);
+  out << YAML::BeginMap;
+  out << YAML::Key << "wall_time_s" << YAML::Value << run.wall_time_s;
+  out << YAML::Key << "bag_duration_s" << YAML::Value << run.bag_duration_s;
+  out << YAML::Key << "realtime_factor" << YAML::Value
+      << (run.wall_time_s > 0.0 ? run.bag_duration_s / run.wall_time_s : 0.0);
+  out << YAML::Key << "peak_rss_mb" << YAML::Value << run.peak_rss_mb;
+  out << YAML::Key << "per_scan_ms" << YAML::Value << YAML::BeginMap;
+  Emit(&out, "deskew_odometry", timings.odometry_ms);
+  Emit(&out, "submap_building", timings.submap_building_ms);
+  out << YAML::EndMap;
+  out << YAML::Key << "per_submap_s" << YAML::Value << YAML::BeginMap;
+  Emit(&out, "intra_loop", timings.intra_loop_s);
+  Emit(&out, "optimisation", timings.optimisation_s);
+  out << YAML::EndMap;
+  out << YAML::Key << "merge_s" << YAML::Value << run.merge_s;
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

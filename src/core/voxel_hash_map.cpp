@@ -1,0 +1,271 @@
+#include "multisession_mapper/core/voxel_hash_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace multisession_mapper {
+namespace core {
+
+Status VoxelHashMapConfig::Validate() const {
+  if (!std::isfinite(voxel_size_m) || voxel_size_m <= 0.0) {
+    return Status::Error("voxel_hash_map.voxel_size_m must be > 0, got " +
+                         std::to_string(voxel_size_m));
+  }
+  if (max_points_per_voxel < 1) {
+    return Status::Error("voxel_hash_map.max_points_per_voxel must be >= 1, got " +
+                         std::to_string(max_points_per_voxel));
+  }
+  if (!std::isfinite(min_point_spacing_m) || min_point_spacing_m < 0.0 ||
+      min_point_spacing_m >= voxel_size_m) {
+    return Status::Error("voxel_hash_map.min_point_spacing_m must be in [0, voxel_size_m), got " +
+                         std::to_string(min_point_spacing_m));
+  }
+  if (!std::isfinite(max_distance_m) || max_distance_m <= 0.0) {
+    return Status::Error("voxel_hash_map.max_distance_m must be > 0, got " +
+                         std::to_string(max_distance_m));
+  }
+  if (!std::isfinite(normal_radius_m) || normal_radius_m <= 0.0 ||
+      normal_radius_m > 3.0 * voxel_size_m) {
+    return Status::Error("voxel_hash_map.normal_radius_m must be in (0, 3 * voxel_size_m], got " +
+                         std::to_string(normal_radius_m));
+  }
+  return plane.Validate();
+}
+
+StatusOr<VoxelHashMap> VoxelHashMap::Create(const VoxelHashMapConfig& config) {
+  const Status status = config.Validate();
+  if (!status.ok()) return status;
+  return VoxelHashMap(config);
+}
+
+VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
+    : config_(config), inv_voxel_size_(1.0 / config.voxel_size_m) {
+  RebuildTable(1024);
+}
+
+void VoxelHashMap::Clear() {
+  voxels_.clear();
+  RebuildTable(1024);
+}
+
+std::uint64_t VoxelHashMap::Key(const VoxelIndex& index) {
+  const auto axis = [](int v) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(v) + (1 << 20)) & 0x1FFFFFu;
+  };
+  return (axis(index.x()) << 42) | (axis(index.y()) << 21) | axis(index.z());
+}
+
+namespace {
+std::size_t Mix(std::uint64_t k) {
+  k ^= k >> 33;
+  k *= 0xff51afd7ed558ccdULL;
+  k ^= k >> 33;
+  return static_cast<std::size_t>(k);
+}
+}  // namespace
+
+int VoxelHashMap::Find(const VoxelIndex& index) const {
+  const std::uint64_t key = Key(index);
+  std::size_t i = Mix(key) & slot_mask_;
+  while (true) {
+    const std::uint64_t k = slot_keys_[i];
+    if (k == key) return slot_voxels_[i];
+    if (k == kEmptySlot) return -1;
+    i = (i + 1) & slot_mask_;
+  }
+}
+
+int VoxelHashMap::FindOrInsert(const VoxelIndex& index) {
+  const std::uint64_t key = Key(index);
+  std::size_t i = Mix(key) & slot_mask_;
+  while (true) {
+    const std::uint64_t k = slot_keys_[i];
+    if (k == key) return slot_voxels_[i];
+    if (k == kEmptySlot) break;
+    i = (i + 1) & slot_mask_;
+  }
+  const int id = static_cast<int>(voxels_.size());
+  voxels_.emplace_back();
+  voxels_.back().key = key;
+  if (2 * voxels_.size() > slot_keys_.size()) {
+    RebuildTable(2 * voxels_.size());  // keep the load factor under 1/2
+  } else {
+    slot_keys_[i] = key;
+    slot_voxels_[i] = id;
+  }
+  return id;
+}
+
+void VoxelHashMap::RebuildTable(std::size_t min_capacity) {
+  std::size_t capacity = 1024;
+  while (capacity < 2 * min_capacity || capacity < 2 * voxels_.size()) capacity <<= 1;
+  slot_keys_.assign(capacity, kEmptySlot);
+  slot_voxels_.assign(capacity, -1);
+  slot_mask_ = capacity - 1;
+  for (std::size_t id = 0; id < voxels_.size(); ++id) {
+    std::size_t i = Mix(voxels_[id].key) & slot_mask_;
+    while (slot_keys_[i] != kEmptySlot) i = (i + 1) & slot_mask_;
+    slot_keys_[i] = voxels_[id].key;
+    slot_voxels_[i] = static_cast<std::int32_t>(id);
+  }
+}
+
+VoxelHashMap::VoxelIndex VoxelHashMap::IndexOf(const Eigen::Vector3d& p) const {
+  return VoxelIndex(static_cast<int>(std::floor(p.x() * inv_voxel_size_)),
+                    static_cast<int>(std::floor(p.y() * inv_voxel_size_)),
+                    static_cast<int>(std::floor(p.z() * inv_voxel_size_)));
+}
+
+void VoxelHashMap::Update(const PointVector& points_in_map,
+                          const Eigen::Vector3d& robot_position_m) {
+  AddPoints(points_in_map);
+  RemoveFarVoxels(robot_position_m);
+}
+
+void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
+  ++epoch_;
+  const double spacing_sq = config_.min_point_spacing_m * config_.min_point_spacing_m;
+  const std::size_t max_points = static_cast<std::size_t>(config_.max_points_per_voxel);
+  std::vector<VoxelIndex> changed;
+  for (const Eigen::Vector3d& p : points_in_map) {
+    if (!p.allFinite()) continue;
+    const VoxelIndex index = IndexOf(p);
+    Voxel& voxel = voxels_[FindOrInsert(index)];
+    if (voxel.points.size() >= max_points) continue;
+    if (spacing_sq > 0.0 &&
+        std::any_of(voxel.points.begin(), voxel.points.end(),
+                    [&](const Eigen::Vector3d& q) { return (q - p).squaredNorm() < spacing_sq; })) {
+      continue;
+    }
+    if (voxel.points.empty()) voxel.points.reserve(max_points);
+    voxel.points.push_back(p);
+    if (voxel.last_insert_epoch != epoch_) {
+      voxel.last_insert_epoch = epoch_;
+      changed.push_back(index);
+    }
+  }
+  for (const VoxelIndex& index : changed) InvalidateNormalsAround(index);
+}
+
+void VoxelHashMap::InvalidateNormalsAround(const VoxelIndex& index) {
+  const int reach = static_cast<int>(std::ceil(config_.normal_radius_m * inv_voxel_size_));
+  for (int dx = -reach; dx <= reach; ++dx) {
+    for (int dy = -reach; dy <= reach; ++dy) {
+      for (int dz = -reach; dz <= reach; ++dz) {
+        const int id = Find(index + VoxelIndex(dx, dy, dz));
+        if (id < 0) continue;
+        const Voxel& voxel = voxels_[id];
+        voxel.normal_states.assign(voxel.points.size(), NormalState::kUnknown);
+        voxel.normals.resize(voxel.points.size());
+      }
+    }
+  }
+}
+
+void VoxelHashMap::RemoveFarVoxels(const Eigen::Vector3d& position_m) {
+  const double max_sq = config_.max_distance_m * config_.max_distance_m;
+  const auto far = [&](const Voxel& v) {
+    return v.points.empty() || (v.points.front() - position_m).squaredNorm() > max_sq;
+  };
+  const auto new_end = std::remove_if(voxels_.begin(), voxels_.end(), far);
+  if (new_end == voxels_.end()) return;
+  voxels_.erase(new_end, voxels_.end());
+  RebuildTable(voxels_.size());
+}
+
+bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m,
+                             TargetMatch* match) const {
+  if (voxels_.empty() || !(max_distance_m > 0.0)) return false;
+  const VoxelIndex center = IndexOf(query);
+  const double size = config_.voxel_size_m;
+  // Distance from the query to the low / high face of its own voxel, per axis.
+  const Eigen::Vector3d low = query - center.cast<double>() * size;
+  const Eigen::Vector3d high = Eigen::Vector3d::Constant(size) - low;
+
+  double best_sq = max_distance_m * max_distance_m;
+  const Voxel* best_voxel = nullptr;
+  std::size_t best_index = 0;
+  const auto search = [&](const VoxelIndex& index) {
+    const int id = Find(index);
+    if (id < 0) return;
+    const Voxel& voxel = voxels_[id];
+    const std::vector<Eigen::Vector3d>& pts = voxel.points;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const double d = (pts[i] - query).squaredNorm();
+      if (d < best_sq) {
+        best_sq = d;
+        best_voxel = &voxel;
+        best_index = i;
+      }
+    }
+  };
+  search(center);
+  for (int dx = -1; dx <= 1; ++dx) {
+    const double gx = dx < 0 ? low.x() : (dx > 0 ? high.x() : 0.0);
+    for (int dy = -1; dy <= 1; ++dy) {
+      const double gy = dy < 0 ? low.y() : (dy > 0 ? high.y() : 0.0);
+      for (int dz = -1; dz <= 1; ++dz) {
+        if (dx == 0 && dy == 0 && dz == 0) continue;
+        const double gz = dz < 0 ? low.z() : (dz > 0 ? high.z() : 0.0);
+        // Skip a neighbour voxel that cannot hold anything closer than the best so far.
+        if (gx * gx + gy * gy + gz * gz >= best_sq) continue;
+        search(center + VoxelIndex(dx, dy, dz));
+      }
+    }
+  }
+  if (best_voxel == nullptr) return false;
+
+  const Eigen::Vector3d& point = best_voxel->points[best_index];
+  match->point = point;
+  match->distance_sq = best_sq;
+  if (best_voxel->normal_states.size() != best_voxel->points.size()) {
+    best_voxel->normal_states.resize(best_voxel->points.size(), NormalState::kUnknown);
+    best_voxel->normals.resize(best_voxel->points.size());
+  }
+  NormalState& state = best_voxel->normal_states[best_index];
+  if (state == NormalState::kUnknown) {
+    state = ComputeNormal(point, IndexOf(point), &best_voxel->normals[best_index]);
+  }
+  match->has_normal = state == NormalState::kPlanar;
+  if (match->has_normal) match->normal = best_voxel->normals[best_index];
+  return true;
+}
+
+VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
+                                                      const VoxelIndex& index,
+                                                      Eigen::Vector3d* normal) const {
+  const double radius_sq = config_.normal_radius_m * config_.normal_radius_m;
+  const int reach = static_cast<int>(std::ceil(config_.normal_radius_m * inv_voxel_size_));
+  CovarianceAccumulator acc;
+  for (int dx = -reach; dx <= reach; ++dx) {
+    for (int dy = -reach; dy <= reach; ++dy) {
+      for (int dz = -reach; dz <= reach; ++dz) {
+        const int id = Find(index + VoxelIndex(dx, dy, dz));
+        if (id < 0) continue;
+        for (const Eigen::Vector3d& q : voxels_[id].points) {
+          if ((q - p).squaredNorm() <= radius_sq) acc.Add(q - p);  // centred: better conditioned
+        }
+      }
+    }
+  }
+  return acc.Normal(config_.plane, normal) ? NormalState::kPlanar : NormalState::kNotPlanar;
+}
+
+PointVector VoxelHashMap::Points() const {
+  PointVector out;
+  out.reserve(NumPoints());
+  for (const Voxel& voxel : voxels_) {
+    out.insert(out.end(), voxel.points.begin(), voxel.points.end());
+  }
+  return out;
+}
+
+std::size_t VoxelHashMap::NumPoints() const {
+  std::size_t n = 0;
+  for (const Voxel& voxel : voxels_) n += voxel.points.size();
+  return n;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

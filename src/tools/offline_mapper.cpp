@@ -1,0 +1,234 @@
+// offline_mapper: maps recording sessions from bags into a map directory, as fast as the
+// machine allows (no roscore, no playback). Thin: reads the bag through the conversions layer,
+// drives the core SessionMapper, hands the result to the map update and saves atomically.
+//   offline_mapper --bag day1.bag [--bag day2.bag ...] --map campus_map/ [options]
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "multisession_mapper/core/map_store.h"
+#include "multisession_mapper/core/map_update.h"
+#include "multisession_mapper/core/pipeline_config.h"
+#include "multisession_mapper/core/session_mapper.h"
+#include "multisession_mapper/core/timing_record.h"
+#include "multisession_mapper/ros/bag_scan_reader.h"
+#include "multisession_mapper/tools/cli.h"
+
+namespace msm = multisession_mapper;
+namespace core = multisession_mapper::core;
+
+namespace {
+
+const char kUsage[] =
+    "usage: offline_mapper --bag FILE [--bag FILE ...] --map DIR [options]\n"
+    "  --bag FILE        a session's bag; several are mapped one after the other\n"
+    "  --map DIR         map directory (created when absent; updated atomically)\n"
+    "  --topic NAME      PointCloud2 topic (/velodyne_points)\n"
+    "  --config FILE     pipeline configuration YAML (defaults: cfg/default.yaml)\n"
+    "  --session NAME    session name (default: the bag's file name without extension)\n"
+    "  --max-scans N     stop each session after N scans (0: all)\n"
+    "  --quiet           no progress output\n";
+
+struct Options {
+  std::vector<std::string> bags;
+  std::string map_dir;
+  std::string topic = "/velodyne_points";
+  std::string config_path;
+  std::string session;
+  long long max_scans = 0;
+  bool quiet = false;
+};
+
+int UsageError(const std::string& message) {
+  std::fprintf(stderr, "offline_mapper: %s\n%s", message.c_str(), kUsage);
+  return 2;
+}
+
+double PeakRssMb() {
+  struct rusage usage;
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;
+}
+
+std::string UtcNow() {
+  char buffer[32];
+  const std::time_t now = std::time(nullptr);
+  std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  return buffer;
+}
+
+// Maps one bag into the map directory; returns the process exit code.
+int MapSession(const Options& options, const std::string& bag_path, const std::string& name,
+               const core::PipelineConfig& config) {
+  const auto start = std::chrono::steady_clock::now();
+  core::StatusOr<msm::conversions::BagScanReader> reader =
+      msm::conversions::BagScanReader::Open(bag_path, options.topic);
+  if (!reader.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s\n", reader.status().message().c_str());
+    return 1;
+  }
+  core::MapContents map;
+  const core::MapStore store;
+  if (core::MapStore::Exists(options.map_dir)) {
+    core::StatusOr<core::MapContents> loaded = store.Load(options.map_dir);
+    if (!loaded.ok()) {
+      std::fprintf(stderr, "offline_mapper: cannot load the map: %s\n",
+                   loaded.status().message().c_str());
+      return 1;
+    }
+    map = std::move(loaded.value());
+    for (const core::SessionRecord& s : map.sessions) {
+      if (s.name == name) {
+        std::fprintf(stderr,
+                     "offline_mapper: the map already has a session '%s' (use --session)\n",
+                     name.c_str());
+        return 1;
+      }
+    }
+    if (!map.sessions.empty()) {
+      std::fprintf(stderr,
+                   "offline_mapper: '%s' holds %zu session(s); merging a further session into a "
+                   "map (inter-session loops, joint optimisation, dynamic removal) is not "
+                   "implemented in this version. The map was not changed.\n",
+                   options.map_dir.c_str(), map.sessions.size());
+      return 3;
+    }
+  }
+
+  core::StatusOr<core::SessionMapper> mapper = core::SessionMapper::Create(config.session, name);
+  if (!mapper.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s\n", mapper.status().message().c_str());
+    return 1;
+  }
+  const std::size_t total = options.max_scans > 0
+                                ? std::min<std::size_t>(options.max_scans, reader.value().num_messages())
+                                : reader.value().num_messages();
+  msm::tools::Progress progress(name, total, "scans", !options.quiet);
+  std::size_t bad_scans = 0;
+  double first_stamp = -1.0, last_stamp = -1.0;
+  const core::Status read = reader.value().ForEach(
+      [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
+        if (options.max_scans > 0 && index >= static_cast<std::size_t>(options.max_scans)) return false;
+        core::Status status = scan.ok() ? mapper.value().AddScan(scan.value()) : scan.status();
+        if (!status.ok()) {
+          if (++bad_scans <= 5) {
+            std::fprintf(stderr, "\noffline_mapper: scan %zu skipped: %s\n", index,
+                         status.message().c_str());
+          }
+        } else {
+          if (first_stamp < 0) first_stamp = scan.value().stamp_s;
+          last_stamp = scan.value().stamp_s;
+        }
+        progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
+        return true;
+      });
+  progress.Finish();
+  if (!read.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s; the map was not changed\n", read.message().c_str());
+    return 1;
+  }
+  core::StatusOr<core::SessionResult> result = mapper.value().Finish();
+  if (!result.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s; the map was not changed\n",
+                 result.status().message().c_str());
+    return 1;
+  }
+  const auto merge_start = std::chrono::steady_clock::now();
+  core::SessionRecord record;
+  record.name = name;
+  record.bag = std::filesystem::path(bag_path).filename().string();
+  record.scans = static_cast<std::uint32_t>(result.value().scans_processed);
+  record.duration_s = last_stamp > first_stamp ? last_stamp - first_stamp : 0.0;
+  record.merged_at = UtcNow();
+  core::SessionFiles files;
+  core::Status added = core::AddFirstSession(result.value(), record, files, &map);
+  if (!added.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s\n", added.message().c_str());
+    return 1;
+  }
+  map.parameters_yaml = core::PipelineConfigToYaml(config);
+  core::SessionRunInfo run;
+  run.bag_duration_s = record.duration_s;
+  run.merge_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - merge_start).count();
+  run.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  run.peak_rss_mb = PeakRssMb();
+  map.files["timing/" + name + ".yaml"] = core::TimingYaml(result.value().timings, run);
+  const core::Status saved = store.Save(map, options.map_dir);
+  if (!saved.ok()) {
+    std::fprintf(stderr, "offline_mapper: saving failed: %s\n", saved.message().c_str());
+    return 1;
+  }
+  int accepted = 0;
+  for (const core::LoopRecord& loop : result.value().loops) {
+    accepted += loop.status == core::LoopStatus::kAccepted;
+  }
+  const core::TimingSummary odom = core::Summarize(result.value().timings.odometry_ms);
+  std::fprintf(stderr,
+               "%s: %zu scans (%zu skipped), %zu submaps, %d intra-session loops accepted, "
+               "odometry %.1f ms/scan median, %.1f x real time, peak %.0f MB -> %s\n",
+               name.c_str(), result.value().scans_processed, result.value().scans_skipped,
+               result.value().submaps.size(), accepted, odom.median,
+               run.wall_time_s > 0 ? run.bag_duration_s / run.wall_time_s : 0.0, run.peak_rss_mb,
+               options.map_dir.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&](std::string* out) {
+      if (i + 1 >= argc) return false;
+      *out = argv[++i];
+      return true;
+    };
+    std::string text;
+    if (arg == "--bag" && value(&text)) {
+      options.bags.push_back(text);
+    } else if (arg == "--map" && value(&options.map_dir)) {
+    } else if (arg == "--topic" && value(&options.topic)) {
+    } else if (arg == "--config" && value(&options.config_path)) {
+    } else if (arg == "--session" && value(&options.session)) {
+    } else if (arg == "--max-scans" && value(&text)) {
+      if (!msm::tools::ParseInt(text, &options.max_scans) || options.max_scans < 0) {
+        return UsageError("--max-scans needs a whole number >= 0");
+      }
+    } else if (arg == "--quiet") {
+      options.quiet = true;
+    } else if (arg == "-h" || arg == "--help") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else {
+      return UsageError("unknown or incomplete argument '" + arg + "'");
+    }
+  }
+  if (options.bags.empty()) return UsageError("--bag is required");
+  if (options.map_dir.empty()) return UsageError("--map is required");
+  if (!options.session.empty() && options.bags.size() > 1) {
+    return UsageError("--session names one session; give it with a single --bag");
+  }
+  core::PipelineConfig config;
+  if (!options.config_path.empty()) {
+    core::StatusOr<core::PipelineConfig> loaded = core::LoadPipelineConfig(options.config_path);
+    if (!loaded.ok()) {
+      std::fprintf(stderr, "offline_mapper: %s\n", loaded.status().message().c_str());
+      return 1;
+    }
+    config = loaded.value();
+  }
+  for (const std::string& bag : options.bags) {
+    const std::string name =
+        options.session.empty() ? std::filesystem::path(bag).stem().string() : options.session;
+    const int code = MapSession(options, bag, name, config);
+    if (code != 0) return code;
+  }
+  return 0;
+}

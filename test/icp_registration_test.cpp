@@ -1,0 +1,185 @@
+#include "multisession_mapper/core/icp_registration.h"
+
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <sys/stat.h>
+
+#include <gtest/gtest.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include "multisession_mapper/core/kdtree_target.h"
+#include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/voxel_downsample.h"
+#include "multisession_mapper/core/voxel_hash_map.h"
+#include "synthetic_lidar_scene.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+// A static scan (no motion during the sweep) of the synthetic scene from `pose`.
+PointVector StaticScan(const test::SyntheticScene& scene, const Pose3& pose, unsigned seed) {
+  const LidarScan scan = test::SimulateVlp16(
+      scene, [&pose](double) { return pose; }, 0.0, seed, 0.01, 1800, 0.1, false);
+  return ScanToPointVector(scan);
+}
+
+struct SyntheticPair {
+  PointVector target;  // frame of scan A: scans from 7 nearby poses merged, like a local map
+  PointVector source;  // sensor frame of scan B, one scan
+  Pose3 T_a_b;
+};
+
+// One VLP-16 scan has 2 deg between rings, so a single scan is too sparse for normals on far
+// walls; the registrations that matter (scan-to-local-map, submap-to-submap) have merged
+// scans as target, so the test does the same.
+SyntheticPair MakePair() {
+  const Pose3 pose_a = se3::FromXyzRpy(0.0, 0.0, 1.8, 0.0, 0.0, 0.3);
+  SyntheticPair pair;
+  pair.T_a_b = se3::FromXyzRpy(0.8, -0.3, 0.05, 1.0 * kDeg, -0.5 * kDeg, 6.0 * kDeg);
+  const test::SyntheticScene scene(21, 80, 60.0, {Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0)},
+                                   6.0);
+  for (int i = 0; i < 7; ++i) {
+    const Pose3 T_a_i =
+        se3::FromXyzRpy(-1.5 + 0.5 * i, 0.3 * (i % 3) - 0.3, 0.02 * (i % 2),
+                        0.5 * kDeg * (i % 3 - 1), 0.4 * kDeg * (i % 2), 2.0 * kDeg * i);
+    for (const Eigen::Vector3d& p : StaticScan(scene, pose_a * T_a_i, 10 + i)) {
+      pair.target.push_back(T_a_i * p);
+    }
+  }
+  pair.source = StaticScan(scene, pose_a * pair.T_a_b, 2);
+  return pair;
+}
+
+void ExpectPoseNear(const Pose3& estimate, const Pose3& truth, double max_t_m, double max_r_rad) {
+  const Pose3 error = se3::Between(truth, estimate);
+  EXPECT_LT(se3::TranslationNorm(error), max_t_m) << "estimate\n" << estimate.matrix();
+  EXPECT_LT(se3::RotationAngleRad(error), max_r_rad) << "estimate\n" << estimate.matrix();
+}
+
+TEST(IcpRegistrationTest, RecoversKnownTransformOnSyntheticSceneWithKdTreeTarget) {
+  const SyntheticPair pair = MakePair();
+  const KdTreeTarget target = KdTreeTarget::Create(VoxelDownsample(pair.target, 0.2)).value();
+  const PointVector source = VoxelDownsample(pair.source, 0.3);
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  // From identity (0.85 m and 6 deg away): a wide coarse pass, then the fine one, as a
+  // submap-to-submap caller does from a loose prior.
+  const StatusOr<IcpResult> coarse = icp.Register(source, target, Pose3::Identity(), 3.0, 1.0);
+  ASSERT_TRUE(coarse.ok()) << coarse.status().message();
+  const StatusOr<IcpResult> result = icp.Register(source, target, coarse.value().pose, 1.0, 0.2);
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  ExpectPoseNear(result.value().pose, pair.T_a_b, 0.02, 0.1 * kDeg);
+  EXPECT_TRUE(result.value().converged);
+  EXPECT_GT(result.value().fitness, 0.8);
+  EXPECT_LT(result.value().rmse_m, 0.3);
+  EXPECT_GT(result.value().hessian.trace(), 0.0);
+}
+
+TEST(IcpRegistrationTest, RecoversKnownTransformAgainstVoxelMap) {
+  const SyntheticPair pair = MakePair();
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.AddPoints(VoxelDownsample(pair.target, 0.1));
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  // Start close enough for the one-voxel search reach (as the odometry's prediction is).
+  const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.2, 0.1, 0.0, 0.0, 0.0, 1.0 * kDeg);
+  const StatusOr<IcpResult> result =
+      icp.Register(VoxelDownsample(pair.source, 0.5), map, guess, 1.0, 0.2);
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  ExpectPoseNear(result.value().pose, pair.T_a_b, 0.02, 0.1 * kDeg);
+}
+
+TEST(IcpRegistrationTest, FailsClearlyWithoutOverlapOrTarget) {
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  VoxelHashMap empty = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  const PointVector source(100, Eigen::Vector3d(1.0, 2.0, 3.0));
+  EXPECT_FALSE(icp.Register(source, empty, Pose3::Identity()).ok());
+  const KdTreeTarget far = KdTreeTarget::Create({{100.0, 0.0, 0.0}}).value();
+  const StatusOr<IcpResult> r = icp.Register(source, far, Pose3::Identity());
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("correspondences"), std::string::npos);
+  IcpConfig bad;
+  bad.max_iterations = 0;
+  EXPECT_FALSE(IcpRegistration::Create(bad).ok());
+}
+
+// --- Real data: two outdoor scans from koide3/fast_gicp (see ../shared/data/real/README.md).
+bool Exists(const std::string& path) {
+  struct stat st;
+  return stat(path.c_str(), &st) == 0;
+}
+
+PointVector LoadXyz(const std::string& path) {
+  pcl::PointCloud<pcl::PointXYZ> cloud;
+  if (pcl::io::loadPCDFile(path, cloud) != 0) return {};
+  PointVector out;
+  for (const pcl::PointXYZ& p : cloud) {
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) {
+      out.emplace_back(p.x, p.y, p.z);
+    }
+  }
+  return out;
+}
+
+class RealPairTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string dir = std::string(MSM_SHARED_DATA_DIR) + "/real/fast_gicp_pair";
+    if (!Exists(dir + "/relative.txt")) GTEST_SKIP() << "no real data at " << dir;
+    target_ = LoadXyz(dir + "/251370668.pcd");
+    source_ = LoadXyz(dir + "/251371071.pcd");
+    std::ifstream in(dir + "/relative.txt");
+    Eigen::Matrix4d m;
+    for (int i = 0; i < 16; ++i) in >> m(i / 4, i % 4);
+    ASSERT_TRUE(in.good() || in.eof());
+    relative_ = Pose3(m);  // maps 251371071 (source) into 251370668 (target); checked by ICP
+    ASSERT_GT(target_.size(), 60000u);
+    ASSERT_GT(source_.size(), 60000u);
+  }
+  PointVector target_, source_;
+  Pose3 relative_ = Pose3::Identity();
+};
+
+StatusOr<IcpResult> AlignRealPair(const PointVector& source, const PointVector& target,
+                                  const Pose3& guess) {
+  const KdTreeTarget tree = KdTreeTarget::Create(VoxelDownsample(target, 0.1)).value();
+  IcpConfig config;
+  config.max_correspondence_distance_m = 1.0;
+  config.kernel_scale_m = 0.2;
+  config.max_iterations = 50;
+  return IcpRegistration::Create(config).value().Register(VoxelDownsample(source, 0.5), tree,
+                                                          guess);
+}
+
+TEST_F(RealPairTest, RecoversPublishedRelativeTransformFromIdentity) {
+  const StatusOr<IcpResult> result = AlignRealPair(source_, target_, Pose3::Identity());
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  const Pose3 error = se3::Between(relative_, result.value().pose);
+  std::cout << "real pair: error " << se3::TranslationNorm(error) * 100.0 << " cm, "
+            << se3::RotationAngleRad(error) / kDeg << " deg, " << result.value().iterations
+            << " iterations, fitness " << result.value().fitness << std::endl;
+  // relative.txt is not the optimum of any local method on this pair: our point-to-plane
+  // lands 0.3-0.4 deg from it and PCL's GICP 0.25-0.5 deg (odometry_benchmark), and the
+  // residuals at our result are lower than at relative.txt. 2 cm / 0.1 deg is therefore not
+  // checkable here; the bound is tighter than the data's own upstream test (5 cm / 1 deg).
+  EXPECT_LT(se3::TranslationNorm(error), 0.04);
+  EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg);
+}
+
+TEST_F(RealPairTest, ForwardAndBackwardAlignmentsAreConsistent) {
+  const StatusOr<IcpResult> forward = AlignRealPair(source_, target_, Pose3::Identity());
+  const StatusOr<IcpResult> backward = AlignRealPair(target_, source_, Pose3::Identity());
+  ASSERT_TRUE(forward.ok() && backward.ok());
+  const Pose3 loop = forward.value().pose * backward.value().pose;  // identity if consistent
+  EXPECT_LT(se3::TranslationNorm(loop), 0.02);
+  EXPECT_LT(se3::RotationAngleRad(loop), 0.2 * kDeg);
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,56 @@
+#include "multisession_mapper/core/kdtree_target.h"
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+TEST(KdTreeTargetTest, NearestMatchesBruteForce) {
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  PointVector pts;
+  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
+  const KdTreeTarget target = KdTreeTarget::Create(pts).value();
+  for (int q = 0; q < 500; ++q) {
+    const Eigen::Vector3d query(u(rng), u(rng), u(rng));
+    double best = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : pts) best = std::min(best, (p - query).squaredNorm());
+    TargetMatch match;
+    const bool ok = target.FindMatch(query, 2.0, &match);
+    ASSERT_EQ(ok, best <= 4.0);
+    if (ok) {
+      EXPECT_NEAR(match.distance_sq, best, 1e-9);
+    }
+  }
+}
+
+TEST(KdTreeTargetTest, WallPointsGetWallNormals) {
+  PointVector pts;
+  for (double y = -5.0; y <= 5.0; y += 0.2) {
+    for (double z = 0.0; z <= 3.0; z += 0.2) pts.emplace_back(4.0, y, z);
+  }
+  const KdTreeTarget target = KdTreeTarget::Create(pts).value();
+  EXPECT_GT(target.PlanarFraction(), 0.99);
+  TargetMatch match;
+  ASSERT_TRUE(target.FindMatch(Eigen::Vector3d(3.7, 0.05, 1.0), 1.0, &match));
+  ASSERT_TRUE(match.has_normal);
+  EXPECT_GT(std::abs(match.normal.x()), 0.999);
+}
+
+TEST(KdTreeTargetTest, RejectsEmptyAndNonFiniteInput) {
+  EXPECT_FALSE(KdTreeTarget::Create(PointVector()).ok());
+  PointVector bad = {{0, 0, 0}, {std::nan(""), 0, 0}};
+  EXPECT_FALSE(KdTreeTarget::Create(bad).ok());
+  KdTreeTargetConfig config;
+  config.normal_neighbors = 2;
+  EXPECT_FALSE(KdTreeTarget::Create({{0, 0, 0}}, config).ok());
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper

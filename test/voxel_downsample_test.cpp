@@ -1,0 +1,82 @@
+#include "multisession_mapper/core/voxel_downsample.h"
+
+#include <cmath>
+#include <random>
+#include <set>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+std::tuple<long, long, long> Key(const Eigen::Vector3d& p, double size) {
+  return {static_cast<long>(std::floor(p.x() / size)), static_cast<long>(std::floor(p.y() / size)),
+          static_cast<long>(std::floor(p.z() / size))};
+}
+
+PointVector RandomPoints(int n, unsigned seed, double extent) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-extent, extent);
+  PointVector pts;
+  for (int i = 0; i < n; ++i) pts.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+  return pts;
+}
+
+TEST(VoxelDownsampleTest, KeepsFirstPointOfEveryOccupiedVoxel) {
+  const PointVector pts = RandomPoints(20000, 1, 30.0);
+  const double size = 0.7;
+  const PointVector out = VoxelDownsample(pts, size);
+  std::set<std::tuple<long, long, long>> expected_keys;
+  PointVector expected;
+  for (const Eigen::Vector3d& p : pts) {
+    if (expected_keys.insert(Key(p, size)).second) expected.push_back(p);
+  }
+  ASSERT_EQ(out.size(), expected.size());
+  for (std::size_t i = 0; i < out.size(); ++i) EXPECT_EQ(out[i], expected[i]);
+}
+
+TEST(VoxelDownsampleTest, NegativeCoordinatesAndVoxelBordersAreSeparateVoxels) {
+  // -0.1 and +0.1 straddle the voxel border at 0: two voxels, not one.
+  const PointVector pts = {{-0.1, 0.0, 0.0}, {0.1, 0.0, 0.0}, {0.2, 0.1, 0.1}};
+  EXPECT_EQ(VoxelDownsample(pts, 1.0).size(), 2u);
+}
+
+TEST(VoxelDownsampleTest, NonPositiveVoxelReturnsInput) {
+  const PointVector pts = RandomPoints(100, 2, 5.0);
+  EXPECT_EQ(VoxelDownsample(pts, 0.0).size(), pts.size());
+  EXPECT_EQ(VoxelDownsample(pts, -1.0).size(), pts.size());
+}
+
+TEST(VoxelDownsampleTest, ScanVersionKeepsAttributesAndFlags) {
+  LidarScan scan;
+  scan.stamp_s = 12.5;
+  scan.has_time = true;
+  scan.has_ring = true;
+  for (int i = 0; i < 10; ++i) {
+    LidarPoint p;
+    p.position_m = Eigen::Vector3f(0.01f * i, 0.0f, 0.0f);  // all in one 1 m voxel
+    p.ring = static_cast<std::uint16_t>(i + 3);
+    p.time_s = 0.001f * i;
+    p.intensity = 7.0f + i;
+    scan.points.push_back(p);
+  }
+  LidarPoint far;
+  far.position_m = Eigen::Vector3f(5.0f, 0.0f, 0.0f);
+  far.ring = 9;
+  scan.points.push_back(far);
+  const LidarScan out = VoxelDownsample(scan, 1.0);
+  ASSERT_EQ(out.points.size(), 2u);
+  EXPECT_EQ(out.points[0].ring, 3);
+  EXPECT_FLOAT_EQ(out.points[0].intensity, 7.0f);
+  EXPECT_EQ(out.points[1].ring, 9);
+  EXPECT_DOUBLE_EQ(out.stamp_s, 12.5);
+  EXPECT_TRUE(out.has_time);
+  EXPECT_TRUE(out.has_ring);
+  EXPECT_EQ(ScanToPointVector(out).size(), 2u);
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,103 @@
+#include "multisession_mapper/core/voxel_hash_map.h"
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+TEST(VoxelHashMapTest, NearestNeighbourMatchesBruteForceWithinOneVoxel) {
+  VoxelHashMapConfig config;
+  config.voxel_size_m = 1.0;
+  config.max_points_per_voxel = 1000;  // keep every point so brute force sees the same set
+  config.min_point_spacing_m = 0.0;
+  VoxelHashMap map = VoxelHashMap::Create(config).value();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-10.0, 10.0);
+  PointVector pts;
+  for (int i = 0; i < 5000; ++i) pts.emplace_back(u(rng), u(rng), u(rng) * 0.3);
+  map.AddPoints(pts);
+  ASSERT_EQ(map.NumPoints(), pts.size());
+
+  const double max_dist = 1.0;  // = voxel edge: the 27-voxel search is exact up to this
+  int found = 0;
+  for (int q = 0; q < 2000; ++q) {
+    const Eigen::Vector3d query(u(rng), u(rng), u(rng) * 0.3);
+    double best = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : pts) best = std::min(best, (p - query).squaredNorm());
+    TargetMatch match;
+    const bool ok = map.FindMatch(query, max_dist, &match);
+    ASSERT_EQ(ok, best <= max_dist * max_dist) << "query " << query.transpose();
+    if (ok) {
+      ++found;
+      EXPECT_NEAR(match.distance_sq, best, 1e-12);
+      EXPECT_NEAR((match.point - query).squaredNorm(), best, 1e-12);
+    }
+  }
+  EXPECT_GT(found, 1000);
+}
+
+TEST(VoxelHashMapTest, RespectsMaxPointsAndSpacing) {
+  VoxelHashMapConfig config;
+  config.max_points_per_voxel = 5;
+  config.min_point_spacing_m = 0.1;
+  VoxelHashMap map = VoxelHashMap::Create(config).value();
+  PointVector pts;
+  for (int i = 0; i < 50; ++i) pts.emplace_back(0.5, 0.5, 0.5 + 0.001 * i);  // all too close
+  map.AddPoints(pts);
+  EXPECT_EQ(map.NumPoints(), 1u);
+  pts.clear();
+  for (int i = 0; i < 9; ++i) pts.emplace_back(0.05 + 0.11 * i, 0.5, 0.5);
+  map.AddPoints(pts);
+  EXPECT_EQ(map.NumPoints(), 5u);
+  EXPECT_EQ(map.NumVoxels(), 1u);
+}
+
+TEST(VoxelHashMapTest, RemovesVoxelsFarFromTheRobot) {
+  VoxelHashMapConfig config;
+  config.max_distance_m = 10.0;
+  VoxelHashMap map = VoxelHashMap::Create(config).value();
+  map.Update({{1.0, 0.0, 0.0}, {9.5, 0.0, 0.0}, {15.0, 0.0, 0.0}, {-30.0, 2.0, 0.0}},
+             Eigen::Vector3d::Zero());
+  EXPECT_EQ(map.NumPoints(), 2u);
+  map.RemoveFarVoxels(Eigen::Vector3d(-5.0, 0.0, 0.0));
+  EXPECT_EQ(map.NumPoints(), 1u);  // 9.5 is now 14.5 m away
+  map.Clear();
+  EXPECT_TRUE(map.empty());
+}
+
+TEST(VoxelHashMapTest, PlaneGivesNormalAndUpdatesInvalidateIt) {
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  PointVector ground;
+  for (double x = -3.0; x <= 3.0; x += 0.25) {
+    for (double y = -3.0; y <= 3.0; y += 0.25) ground.emplace_back(x, y, 0.0);
+  }
+  map.AddPoints(ground);
+  TargetMatch match;
+  ASSERT_TRUE(map.FindMatch(Eigen::Vector3d(0.1, 0.1, 0.3), 1.0, &match));
+  ASSERT_TRUE(match.has_normal);
+  EXPECT_GT(std::abs(match.normal.z()), 0.999);
+  EXPECT_NEAR(match.distance_sq, 0.1 * 0.1 + 0.1 * 0.1 + 0.3 * 0.3, 1e-9);
+
+  // A nearest point in empty space far from the plane has no query result within 0.5 m.
+  EXPECT_FALSE(map.FindMatch(Eigen::Vector3d(0.0, 0.0, 0.8), 0.5, &match));
+}
+
+TEST(VoxelHashMapTest, ValidateNamesTheBadField) {
+  VoxelHashMapConfig config;
+  config.voxel_size_m = 0.0;
+  const Status status = VoxelHashMap::Create(config).status();
+  EXPECT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("voxel_size_m"), std::string::npos);
+  config = VoxelHashMapConfig();
+  config.normal_radius_m = 4.0;  // beyond 3 voxels: the neighbourhood search would be too slow
+  EXPECT_FALSE(config.Validate().ok());
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper
