@@ -16,6 +16,7 @@
 
 #include "multisession_mapper/ros/conversions.h"
 #include "multisession_mapper/sim/campus_simulator.h"
+#include "multisession_mapper/tools/cli.h"
 
 namespace msm = multisession_mapper;
 
@@ -44,22 +45,6 @@ int UsageError(const std::string& message) {
   return 2;
 }
 
-bool ParseDouble(const std::string& s, double* out) {
-  char* end = nullptr;
-  const double v = std::strtod(s.c_str(), &end);
-  if (s.empty() || *end != '\0' || !std::isfinite(v)) return false;
-  *out = v;
-  return true;
-}
-
-bool ParseInt(const std::string& s, long long* out) {
-  char* end = nullptr;
-  const long long v = std::strtoll(s.c_str(), &end, 10);
-  if (s.empty() || *end != '\0') return false;
-  *out = v;
-  return true;
-}
-
 // mkdir -p.
 bool MakeDir(const std::string& path) {
   struct stat st;
@@ -67,14 +52,6 @@ bool MakeDir(const std::string& path) {
   const std::size_t slash = path.find_last_of('/');
   if (slash != std::string::npos && slash > 0 && !MakeDir(path.substr(0, slash))) return false;
   return mkdir(path.c_str(), 0755) == 0 || (stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode));
-}
-
-std::string Duration(double s) {
-  char buffer[32];
-  if (s < 0 || !std::isfinite(s)) return "--:--";
-  std::snprintf(buffer, sizeof(buffer), "%d:%02d", static_cast<int>(s) / 60,
-                static_cast<int>(s) % 60);
-  return buffer;
 }
 
 }  // namespace
@@ -108,37 +85,37 @@ int main(int argc, char** argv) {
       if (value != "lz4" && value != "bz2" && value != "none") return bad();
       compression = value;
     } else if (arg == "--sessions") {
-      if (!ParseInt(value, &n) || n < 1 || n > 64) return bad();
+      if (!msm::tools::ParseInt(value, &n) || n < 1 || n > 64) return bad();
       config.campus.num_sessions = static_cast<int>(n);
     } else if (arg == "--seed") {
-      if (!ParseInt(value, &n) || n < 0) return bad();
+      if (!msm::tools::ParseInt(value, &n) || n < 0) return bad();
       config.campus.seed = static_cast<std::uint64_t>(n);
     } else if (arg == "--threads") {
-      if (!ParseInt(value, &n) || n < 1 || n > 256) return bad();
+      if (!msm::tools::ParseInt(value, &n) || n < 1 || n > 256) return bad();
       config.num_threads = static_cast<int>(n);
     } else if (arg == "--max-scans") {
-      if (!ParseInt(value, &n) || n < 0) return bad();
+      if (!msm::tools::ParseInt(value, &n) || n < 0) return bad();
       config.max_scans_per_session = static_cast<int>(n);
     } else if (arg == "--noise") {
-      if (!ParseDouble(value, &d)) return bad();
+      if (!msm::tools::ParseDouble(value, &d)) return bad();
       config.sensor.range_noise_sigma_m = d;
     } else if (arg == "--speed") {
-      if (!ParseDouble(value, &d) || d <= 0.0) return bad();
+      if (!msm::tools::ParseDouble(value, &d) || d <= 0.0) return bad();
       config.campus.cruise_speed_mps = d;
     } else if (arg == "--parked-density") {
-      if (!ParseDouble(value, &d)) return bad();
+      if (!msm::tools::ParseDouble(value, &d)) return bad();
       config.campus.parked_car_density = d;
     } else if (arg == "--always-parked") {
-      if (!ParseDouble(value, &d)) return bad();
+      if (!msm::tools::ParseDouble(value, &d)) return bad();
       config.campus.always_parked_fraction = d;
     } else if (arg == "--movable-density") {
-      if (!ParseDouble(value, &d)) return bad();
+      if (!msm::tools::ParseDouble(value, &d)) return bad();
       config.campus.movable_density = d;
     } else if (arg == "--moving-density") {
-      if (!ParseDouble(value, &d)) return bad();
+      if (!msm::tools::ParseDouble(value, &d)) return bad();
       config.campus.moving_object_density = d;
     } else if (arg == "--label-voxel") {
-      if (!ParseDouble(value, &d)) return bad();
+      if (!msm::tools::ParseDouble(value, &d)) return bad();
       config.label_voxel_m = d;
     } else {
       return UsageError("unknown option '" + arg + "'");
@@ -211,7 +188,7 @@ int main(int argc, char** argv) {
         const double rate = done / std::max(elapsed, 1e-6);
         std::fprintf(stderr, "\r  %s: %5d/%d sweeps | total %d/%d | %.1f sweeps/s | ETA %s   ",
                      name.c_str(), index + 1, session_scans, done, total_scans, rate,
-                     Duration((total_scans - done) / std::max(rate, 1e-6)).c_str());
+                     msm::tools::FormatDuration((total_scans - done) / std::max(rate, 1e-6)).c_str());
       }
       return msm::core::Status::Ok();
     };
