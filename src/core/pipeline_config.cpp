@@ -23,6 +23,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
   SessionMapperConfig& s = c->session;
   InSessionDynamicFilterConfig& d = s.submaps.dynamic_filter;
   SubmapRegistrationConfig& r = s.intra_loops.registration;
+  PlaceRecognizerConfig& p = c->place_recognition;
   return {
       {"input_filter", "min_range_m", &s.odometry.input_filter.min_range_m},
       {"input_filter", "max_range_m", &s.odometry.input_filter.max_range_m},
@@ -58,6 +59,9 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"pose_graph", "odometry_sigma_translation_m", &s.odometry_sigma_translation_m},
       {"pose_graph", "odometry_sigma_translation_per_m", &s.odometry_sigma_translation_per_m},
       {"pose_graph", "odometry_sigma_rotation_rad", &s.odometry_sigma_rotation_rad},
+      {"place_recognition", "d_alpha_ring_histogram", &p.database.d_alpha_ring_histogram},
+      {"place_recognition", "d_alpha_scan_context", &p.database.d_alpha_scan_context},
+      {"place_recognition", "log_neighbours", &p.log_neighbours},
   };
 }
 

@@ -41,6 +41,8 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   out << YAML::Key << "per_scan_ms" << YAML::Value << YAML::BeginMap;
   Emit(&out, "deskew_odometry", timings.odometry_ms);
   Emit(&out, "submap_building", timings.submap_building_ms);
+  Emit(&out, "descriptor", timings.descriptor_ms);
+  Emit(&out, "query", timings.query_ms);
   out << YAML::EndMap;
   out << YAML::Key << "per_submap_s" << YAML::Value << YAML::BeginMap;
   Emit(&out, "intra_loop", timings.intra_loop_s);

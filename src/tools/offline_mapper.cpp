@@ -3,18 +3,22 @@
 // drives the core SessionMapper, hands the result to the map update and saves atomically.
 //   offline_mapper --bag day1.bag [--bag day2.bag ...] --map campus_map/ [options]
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/map_update.h"
 #include "multisession_mapper/core/pipeline_config.h"
+#include "multisession_mapper/core/place_recognizer.h"
 #include "multisession_mapper/core/session_mapper.h"
 #include "multisession_mapper/core/timing_record.h"
 #include "multisession_mapper/ros/bag_scan_reader.h"
@@ -54,6 +58,22 @@ double PeakRssMb() {
   struct rusage usage;
   getrusage(RUSAGE_SELF, &usage);
   return usage.ru_maxrss / 1024.0;
+}
+
+// The database file of a map, read into memory (the map store writes it with the rest).
+core::StatusOr<std::string> DatabaseBytes(const core::PlaceRecognizer& recognizer,
+                                          const std::string& scratch_path) {
+  core::StatusOr<core::DescriptorDatabase> database = recognizer.NewDatabase();
+  if (!database.ok()) return database.status();
+  core::Status s = recognizer.AppendTo(&database.value());
+  if (s.ok()) s = database.value().Save(scratch_path);
+  if (!s.ok()) return s;
+  std::ifstream in(scratch_path, std::ios::binary);
+  std::stringstream bytes;
+  bytes << in.rdbuf();
+  std::remove(scratch_path.c_str());
+  if (!in) return core::Status::Error("cannot read back '" + scratch_path + "'");
+  return bytes.str();
 }
 
 std::string UtcNow() {
@@ -106,6 +126,12 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     std::fprintf(stderr, "offline_mapper: %s\n", mapper.status().message().c_str());
     return 1;
   }
+  core::StatusOr<core::PlaceRecognizer> recognizer =
+      core::PlaceRecognizer::Create(config.place_recognition, name, nullptr);
+  if (!recognizer.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s\n", recognizer.status().message().c_str());
+    return 1;
+  }
   const std::size_t total = options.max_scans > 0
                                 ? std::min<std::size_t>(options.max_scans, reader.value().num_messages())
                                 : reader.value().num_messages();
@@ -116,6 +142,10 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
       [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
         if (options.max_scans > 0 && index >= static_cast<std::size_t>(options.max_scans)) return false;
         core::Status status = scan.ok() ? mapper.value().AddScan(scan.value()) : scan.status();
+        if (status.ok()) {
+          status = recognizer.value().AddScan(mapper.value().last_odometry()->deskewed_scan,
+                                              mapper.value().current_submap_id());
+        }
         if (!status.ok()) {
           if (++bad_scans <= 5) {
             std::fprintf(stderr, "\noffline_mapper: scan %zu skipped: %s\n", index,
@@ -146,13 +176,25 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   record.scans = static_cast<std::uint32_t>(result.value().scans_processed);
   record.duration_s = last_stamp > first_stamp ? last_stamp - first_stamp : 0.0;
   record.merged_at = UtcNow();
+  result.value().timings.descriptor_ms = recognizer.value().descriptor_ms();
+  result.value().timings.query_ms = recognizer.value().query_ms();
   core::SessionFiles files;
+  files.place_recognition_csv = recognizer.value().QueriesCsv();
   core::Status added = core::AddFirstSession(result.value(), record, files, &map);
   if (!added.ok()) {
     std::fprintf(stderr, "offline_mapper: %s\n", added.message().c_str());
     return 1;
   }
   map.parameters_yaml = core::PipelineConfigToYaml(config);
+  core::StatusOr<std::string> database = DatabaseBytes(
+      recognizer.value(), std::filesystem::temp_directory_path().string() + "/msm_database_" +
+                              std::to_string(::getpid()) + ".bin");
+  if (!database.ok()) {
+    std::fprintf(stderr, "offline_mapper: place database: %s\n",
+                 database.status().message().c_str());
+    return 1;
+  }
+  map.files["database/descriptors.bin"] = database.value();
   core::SessionRunInfo run;
   run.bag_duration_s = record.duration_s;
   run.merge_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - merge_start).count();

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "multisession_mapper/core/place_recognizer.h"
 #include "multisession_mapper/core/session_mapper.h"
 #include "multisession_mapper/core/status.h"
 
@@ -14,8 +15,12 @@ namespace core {
 
 struct PipelineConfig {
   SessionMapperConfig session;
+  PlaceRecognizerConfig place_recognition;
 
-  Status Validate() const { return session.Validate(); }
+  Status Validate() const {
+    Status s = session.Validate();
+    return s.ok() ? place_recognition.Validate() : s;
+  }
 };
 
 /// Overrides the defaults with the keys present in `yaml_text`. `source` names the file in

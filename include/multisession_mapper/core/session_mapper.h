@@ -54,6 +54,8 @@ struct SessionTimings {
   std::vector<double> submap_building_ms;  ///< per scan
   std::vector<double> intra_loop_s;       ///< per finished submap: candidate registrations
   std::vector<double> optimisation_s;     ///< per pose graph solve
+  std::vector<double> descriptor_ms;      ///< per scan, filled by the place recognizer
+  std::vector<double> query_ms;           ///< per scan with a history database
 };
 
 struct SessionResult {
