@@ -180,6 +180,24 @@ TEST_F(RealPairTest, ForwardAndBackwardAlignmentsAreConsistent) {
   EXPECT_LT(se3::RotationAngleRad(loop), 0.2 * kDeg);
 }
 
+
+TEST(IcpRegistrationTest, SourceNormalsMustMatchTheSource) {
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  PointVector target_points;
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) target_points.emplace_back(0.2 * i, 0.2 * j, 0.0);
+  }
+  const KdTreeTarget target = KdTreeTarget::Create(target_points).value();
+  PointVector source(target_points.begin(), target_points.begin() + 100);
+  for (Eigen::Vector3d& p : source) p.z() += 0.05;
+  EXPECT_FALSE(icp.Register(source, PointVector(3), target, Pose3::Identity(), 1.0, 0.2).ok());
+  // A flat patch with its (source) normals: only z is constrained, and it is recovered.
+  const PointVector normals(source.size(), Eigen::Vector3d::UnitZ());
+  const StatusOr<IcpResult> r =
+      icp.Register(source, normals, target, Pose3::Identity(), 1.0, 0.2);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_NEAR(r.value().pose.translation().z(), -0.05, 1e-3);
+}
 }  // namespace
 }  // namespace core
 }  // namespace multisession_mapper

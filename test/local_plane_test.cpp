@@ -1,10 +1,14 @@
 #include "multisession_mapper/core/local_plane.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
+
+#include "multisession_mapper/core/se3.h"
+#include "synthetic_lidar_scene.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -53,6 +57,52 @@ TEST(LocalPlaneTest, ValidateRejectsBadCriteria) {
   EXPECT_FALSE(c.Validate().ok());
 }
 
+
+// Ring-based scan normals: ground and wall patches get their surface normal; a point whose
+// ring has no neighbouring ring in the scan (one ring line with depth relief) gets none.
+TEST(ScanNormalsTest, SurfaceNormalsFromNeighbouringRingsOnly) {
+  test::SyntheticScene scene(1, 0, 1.0, {}, 0.0);
+  test::SceneBox wall;
+  wall.center = Eigen::Vector3d(20.0, 0.0, 5.0);
+  wall.half_size = Eigen::Vector3d(0.5, 30.0, 5.0);
+  scene.SetBoxes({wall});
+  const auto pose_at = [](double) { return se3::FromXyzRpy(0.0, 0.0, 1.5, 0.0, 0.0, 0.0); };
+  const LidarScan scan = test::SimulateVlp16(scene, pose_at, 0.0, 3, 0.025, 1800);
+  const ScanNormalConfig config;
+  const PointVector normals = EstimateScanNormals(scan, scan.points, config);
+  ASSERT_EQ(normals.size(), scan.points.size());
+  int ground = 0, ground_ok = 0, on_wall = 0, wall_ok = 0;
+  for (std::size_t i = 0; i < scan.points.size(); ++i) {
+    const Eigen::Vector3f& p = scan.points[i].position_m;
+    if (normals[i].isZero(0.0)) continue;
+    if (p.z() < -1.4 && p.head<2>().norm() < 12.0) {
+      ++ground;
+      ground_ok += std::abs(normals[i].z()) > std::cos(3.0 * M_PI / 180.0) ? 1 : 0;
+    } else if (p.x() > 19.0 && p.z() > -1.0) {
+      ++on_wall;
+      wall_ok += std::abs(normals[i].x()) > std::cos(5.0 * M_PI / 180.0) ? 1 : 0;
+    }
+  }
+  EXPECT_GT(ground, 1000);
+  EXPECT_GT(on_wall, 1000);
+  EXPECT_GT(ground_ok, 0.97 * ground);
+  EXPECT_GT(wall_ok, 0.97 * on_wall);
+
+  // One ring only (the others removed): no point spans two rings, so no normal at all.
+  LidarScan one_ring = scan;
+  one_ring.points.erase(std::remove_if(one_ring.points.begin(), one_ring.points.end(),
+                                       [](const LidarPoint& p) { return p.ring != 9; }),
+                        one_ring.points.end());
+  ASSERT_GT(one_ring.points.size(), 100u);
+  for (const Eigen::Vector3d& n : EstimateScanNormals(one_ring, one_ring.points, config)) {
+    EXPECT_TRUE(n.isZero(0.0));
+  }
+  LidarScan no_ring = scan;
+  no_ring.has_ring = false;
+  for (const Eigen::Vector3d& n : EstimateScanNormals(no_ring, scan.points, config)) {
+    EXPECT_TRUE(n.isZero(0.0));
+  }
+}
 }  // namespace
 }  // namespace core
 }  // namespace multisession_mapper

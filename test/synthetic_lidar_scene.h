@@ -8,6 +8,7 @@
 #include <functional>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -57,6 +58,15 @@ class SyntheticScene {
   }
 
   const std::vector<SceneBox>& boxes() const { return boxes_; }
+  /// Replaces the boxes by hand-placed ones (yaw 0 unless set; caches filled here).
+  void SetBoxes(std::vector<SceneBox> boxes) {
+    for (SceneBox& b : boxes) {
+      b.cos_yaw = std::cos(b.yaw_rad);
+      b.sin_yaw = std::sin(b.yaw_rad);
+      b.bound_radius = b.half_size.norm();
+    }
+    boxes_ = std::move(boxes);
+  }
 
   /// Distance along the unit ray (origin o, direction d) to the first surface, or +inf.
   double Raycast(const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {

@@ -76,6 +76,30 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const Pose3& initial_guess,
                                               double max_correspondence_distance_m,
                                               double kernel_scale_m) const {
+  return RegisterImpl(source, nullptr, target, initial_guess, max_correspondence_distance_m,
+                      kernel_scale_m);
+}
+
+StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
+                                              const PointVector& source_normals,
+                                              const RegistrationTarget& target,
+                                              const Pose3& initial_guess,
+                                              double max_correspondence_distance_m,
+                                              double kernel_scale_m) const {
+  if (source_normals.size() != source.size()) {
+    return Status::Error("icp: " + std::to_string(source_normals.size()) + " normals for " +
+                         std::to_string(source.size()) + " source points");
+  }
+  return RegisterImpl(source, &source_normals, target, initial_guess,
+                      max_correspondence_distance_m, kernel_scale_m);
+}
+
+StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
+                                                  const PointVector* source_normals,
+                                                  const RegistrationTarget& target,
+                                                  const Pose3& initial_guess,
+                                                  double max_correspondence_distance_m,
+                                                  double kernel_scale_m) const {
   if (target.empty()) return Status::Error("icp: the target is empty");
   if (source.size() < static_cast<std::size_t>(config_.min_correspondences)) {
     return Status::Error("icp: only " + std::to_string(source.size()) +
@@ -103,11 +127,18 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
     std::size_t inliers = 0;
     std::size_t pairs = 0;  // inliers that entered the least squares
     double sum_dist_sq = 0.0;
-    for (const Eigen::Vector3d& s : source) {
-      const Eigen::Vector3d p = pose * s;
+    for (std::size_t i = 0; i < source.size(); ++i) {
+      const Eigen::Vector3d p = pose * source[i];
       if (!target.FindMatch(p, max_correspondence_distance_m, &match)) continue;
       ++inliers;
       sum_dist_sq += match.distance_sq;
+      if (source_normals != nullptr) {
+        // The plane is the source point's own (ring-based) surface normal: target normals
+        // of single-ring neighbourhoods are sampling artefacts (see the header).
+        const Eigen::Vector3d& n_source = (*source_normals)[i];
+        match.has_normal = !n_source.isZero(0.0);
+        if (match.has_normal) match.normal = pose.linear() * n_source;
+      }
       if (!match.has_normal && !config_.point_to_point_fallback) continue;
       ++pairs;
       const Eigen::Vector3d diff = p - match.point;

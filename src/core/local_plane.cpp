@@ -1,7 +1,10 @@
 #include "multisession_mapper/core/local_plane.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 
@@ -43,6 +46,84 @@ bool CovarianceAccumulator::Normal(const LocalPlaneCriteria& criteria,
   if (ev(0) > criteria.max_flatness * ev(1)) return false;
   *normal = solver.eigenvectors().col(0).normalized();
   return normal->allFinite();
+}
+
+Status ScanNormalConfig::Validate() const {
+  if (azimuth_bins < 8) {
+    return Status::Error("scan_normal.azimuth_bins must be >= 8, got " +
+                         std::to_string(azimuth_bins));
+  }
+  if (column_reach < 1 || column_step < 1 || column_reach * column_step * 2 >= azimuth_bins) {
+    return Status::Error("scan_normal.column_reach / column_step must be >= 1 and span less "
+                         "than the full circle");
+  }
+  if (!std::isfinite(max_neighbor_distance_abs_m) || max_neighbor_distance_abs_m <= 0.0 ||
+      !std::isfinite(max_neighbor_distance_rel) || max_neighbor_distance_rel < 0.0) {
+    return Status::Error("scan_normal.max_neighbor_distance_abs_m must be > 0 and "
+                         "max_neighbor_distance_rel >= 0");
+  }
+  return plane.Validate();
+}
+
+namespace {
+
+int AzimuthBin(const Eigen::Vector3f& p, int bins) {
+  constexpr double kTwoPi = 2.0 * M_PI;
+  double a = std::atan2(static_cast<double>(p.y()), static_cast<double>(p.x()));
+  if (a < 0.0) a += kTwoPi;
+  const int bin = static_cast<int>(a * bins / kTwoPi);
+  return std::min(bin, bins - 1);
+}
+
+}  // namespace
+
+PointVector EstimateScanNormals(const LidarScan& scan, const std::vector<LidarPoint>& queries,
+                                const ScanNormalConfig& config) {
+  PointVector normals(queries.size(), Eigen::Vector3d::Zero());
+  if (!scan.has_ring || queries.empty() || !config.Validate().ok()) return normals;
+  int rings = 0;
+  for (const LidarPoint& p : scan.points) rings = std::max(rings, static_cast<int>(p.ring) + 1);
+  if (rings < 2) return normals;
+  const int bins = config.azimuth_bins;
+  // Range image: one point (the first) per (ring, azimuth bin); -1 = empty.
+  std::vector<std::int32_t> image(static_cast<std::size_t>(rings) * bins, -1);
+  for (std::size_t i = 0; i < scan.points.size(); ++i) {
+    const LidarPoint& p = scan.points[i];
+    if (!p.position_m.allFinite()) continue;
+    std::int32_t& cell = image[static_cast<std::size_t>(p.ring) * bins +
+                               AzimuthBin(p.position_m, bins)];
+    if (cell < 0) cell = static_cast<std::int32_t>(i);
+  }
+  for (std::size_t k = 0; k < queries.size(); ++k) {
+    const LidarPoint& query = queries[k];
+    if (!query.position_m.allFinite() || query.ring >= rings) continue;
+    const Eigen::Vector3d q = query.position_m.cast<double>();
+    const double reach = config.max_neighbor_distance_abs_m +
+                         config.max_neighbor_distance_rel * q.norm();
+    const double reach_sq = reach * reach;
+    const int col = AzimuthBin(query.position_m, bins);
+    CovarianceAccumulator acc;
+    acc.Add(Eigen::Vector3d::Zero());  // the query itself (centred at the query)
+    bool other_ring = false;
+    for (int dr = -1; dr <= 1; ++dr) {
+      const int ring = static_cast<int>(query.ring) + dr;
+      if (ring < 0 || ring >= rings) continue;
+      for (int dc = -config.column_reach; dc <= config.column_reach; ++dc) {
+        if (dr == 0 && dc == 0) continue;
+        const int c = ((col + dc * config.column_step) % bins + bins) % bins;
+        const std::int32_t id = image[static_cast<std::size_t>(ring) * bins + c];
+        if (id < 0) continue;
+        const Eigen::Vector3d d = scan.points[id].position_m.cast<double>() - q;
+        if (d.squaredNorm() > reach_sq) continue;
+        acc.Add(d);
+        if (dr != 0) other_ring = true;
+      }
+    }
+    if (!other_ring) continue;
+    Eigen::Vector3d n;
+    if (acc.Normal(config.plane, &n)) normals[k] = n;
+  }
+  return normals;
 }
 
 }  // namespace core

@@ -35,6 +35,7 @@ Status OdometryConfig::Validate() const {
   if (!(status = local_map.Validate()).ok()) return status;
   if (!(status = icp.Validate()).ok()) return status;
   if (!(status = threshold.Validate()).ok()) return status;
+  if (!(status = scan_normals.Validate()).ok()) return status;
   if (!std::isfinite(map_voxel_size_m) || map_voxel_size_m <= 0.0) {
     return Status::Error("odometry.map_voxel_size_m must be > 0, got " +
                          std::to_string(map_voxel_size_m));
@@ -111,15 +112,33 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   result.prediction = se3::Normalized(pose_ * se3::Exp(velocity * dt));
 
   PointVector source;
-  // De-skews with `v` and downsamples: map points, then the coarser registration points.
+  PointVector source_normals;  // empty: ICP with the local map's normals only
+  // De-skews with `v` and downsamples: map points, then the coarser registration points
+  // (with their normals from the scan's rings).
   const auto prepare = [&](const se3::Vector6d& v) {
     Stopwatch prepare_watch;
     result.deskewed_scan = deskewer_.Apply(filtered, v, &result.deskew_stats);
     result.timing.deskew_ms += prepare_watch.Lap();
-    result.map_points =
-        VoxelDownsample(ScanToPointVector(result.deskewed_scan), config_.map_voxel_size_m);
-    source = VoxelDownsample(result.map_points, config_.registration_voxel_size_m);
+    const LidarScan map_scan = VoxelDownsample(result.deskewed_scan, config_.map_voxel_size_m);
+    result.map_points = ScanToPointVector(map_scan);
+    const LidarScan source_scan = VoxelDownsample(map_scan, config_.registration_voxel_size_m);
+    source = ScanToPointVector(source_scan);
+    source_normals.clear();
+    if (config_.use_scan_normals && result.deskewed_scan.has_ring) {
+      source_normals =
+          EstimateScanNormals(result.deskewed_scan, source_scan.points, config_.scan_normals);
+    }
     result.timing.downsample_ms += prepare_watch.Lap();
+  };
+  const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m) {
+    if (source_normals.empty()) {
+      return icp_.Register(source, local_map_, guess, max_distance_m, kernel_m);
+    }
+    local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
+    StatusOr<IcpResult> icp =
+        icp_.Register(source, source_normals, local_map_, guess, max_distance_m, kernel_m);
+    local_map_.SetNormalsEnabled(true);
+    return icp;
   };
   prepare(velocity);
   watch.Lap();
@@ -131,8 +150,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   Pose3 estimate = result.prediction;
   bool add_to_map = true;
   if (has_scan_ && !local_map_.empty()) {
-    StatusOr<IcpResult> icp =
-        icp_.Register(source, local_map_, result.prediction, max_distance_m, kernel_m);
+    StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m);
     if (icp.ok()) {
       result.icp = icp.value();
       result.registered = true;
@@ -156,8 +174,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
          se3::RotationAngleRad(mismatch) > config_.refine_min_rotation_rad)) {
       prepare(estimated_velocity);
       watch.Lap();
-      StatusOr<IcpResult> refined =
-          icp_.Register(source, local_map_, estimate, max_distance_m, kernel_m);
+      StatusOr<IcpResult> refined = register_scan(estimate, max_distance_m, kernel_m);
       if (refined.ok()) {
         result.icp = refined.value();
         estimate = refined.value().pose;

@@ -219,6 +219,10 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
   const Eigen::Vector3d& point = best_voxel->points[best_index];
   match->point = point;
   match->distance_sq = best_sq;
+  if (!normals_enabled_) {
+    match->has_normal = false;
+    return true;
+  }
   if (best_voxel->normal_states.size() != best_voxel->points.size()) {
     best_voxel->normal_states.resize(best_voxel->points.size(), NormalState::kUnknown);
     best_voxel->normals.resize(best_voxel->points.size());

@@ -88,10 +88,26 @@ class IcpRegistration {
                                const Pose3& initial_guess, double max_correspondence_distance_m,
                                double kernel_scale_m) const;
 
+  /// Same, with a normal per source point (source frame; zero = unknown), e.g. from
+  /// EstimateScanNormals: each pair's plane is the source point's normal, the target's
+  /// normals are not used; a source point without a normal is used point-to-point
+  /// (point_to_point_fallback) or not at all. Why: in a target sampled from few scan poses
+  /// (odometry start-up, far range) a neighbourhood is often a single scan ring whose
+  /// "normal" is fixed to the sensor's scan pattern; such residuals pin the estimate to the
+  /// pose the target was recorded from (measured: the odometry stood still on the
+  /// simulator's sessions). Normals spanning two rings of the source scan are the surface's.
+  StatusOr<IcpResult> Register(const PointVector& source, const PointVector& source_normals,
+                               const RegistrationTarget& target, const Pose3& initial_guess,
+                               double max_correspondence_distance_m, double kernel_scale_m) const;
+
   const IcpConfig& config() const { return config_; }
 
  private:
   explicit IcpRegistration(const IcpConfig& config) : config_(config) {}
+  StatusOr<IcpResult> RegisterImpl(const PointVector& source, const PointVector* source_normals,
+                                   const RegistrationTarget& target, const Pose3& initial_guess,
+                                   double max_correspondence_distance_m,
+                                   double kernel_scale_m) const;
   IcpConfig config_;
 };
 

@@ -57,6 +57,9 @@ class VoxelHashMap : public RegistrationTarget {
 
   bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                  TargetMatch* match) const override;
+  /// false: FindMatch returns no normals (has_normal false) and computes none, e.g. when the
+  /// ICP takes its normals from the source scan (the normals are most of a match's cost).
+  void SetNormalsEnabled(bool enabled) { normals_enabled_ = enabled; }
   bool empty() const override { return voxels_.empty(); }
 
   /// Every point of the map (map frame), e.g. for visualisation.
@@ -94,6 +97,7 @@ class VoxelHashMap : public RegistrationTarget {
   VoxelHashMapConfig config_;
   double inv_voxel_size_ = 1.0;
   std::uint32_t epoch_ = 0;
+  bool normals_enabled_ = true;
   // Open-addressing table (linear probing, power-of-two size) from key to index in voxels_;
   // ~3x faster lookups than std::unordered_map here, which dominate the ICP's run time.
   std::vector<Voxel> voxels_;
