@@ -93,7 +93,7 @@ fi
 if [ -x "${bin}/offline_mapper" ] && [ -f "${data}/sessions.yaml" ]; then
   rm -rf "${map}"
   index=0
-  for bag in $(/usr/bin/python3 -c "import yaml,sys; [print(s['bag']) for s in yaml.safe_load(open(sys.argv[1]))['sessions']]" "${data}/sessions.yaml"); do
+  for bag in $(msm_session_bags "${data}"); do
     msm_log "mapping ${bag} into ${map}"
     run_timed "$(printf 'map_%02d' ${index})" "${bin}/offline_mapper" --bag "${data}/${bag}" \
       --map "${map}" || msm_log "offline_mapper failed on ${bag} (see above)"

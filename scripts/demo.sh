@@ -49,7 +49,7 @@ fi
 # 2. The multi-session pipeline: every session merged into one map, in recording order.
 if [ -x "${bin}/offline_mapper" ] && [ -f "${data}/sessions.yaml" ]; then
   rm -rf "${map}"
-  for bag in $(/usr/bin/python3 -c "import yaml,sys; [print(s['bag']) for s in yaml.safe_load(open(sys.argv[1]))['sessions']]" "${data}/sessions.yaml"); do
+  for bag in $(msm_session_bags "${data}"); do
     msm_log "mapping ${bag}"
     set +e
     "${bin}/offline_mapper" --bag "${data}/${bag}" --map "${map}"

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -195,6 +196,19 @@ std::vector<char> ReadAll(const std::string& path) {
 void WriteAll(const std::string& path, const std::vector<char>& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+TEST(DescriptorDatabaseTest, WriteToAStreamGivesTheBytesOfTheFile) {
+  const DescriptorDatabase db = MakeRingDatabase(RandomFixture(50, 5));
+  const std::string path = TmpPath("stream_vs_file.bin");
+  ASSERT_TRUE(db.Save(path).ok());
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream file_bytes;
+  file_bytes << in.rdbuf();
+  std::ostringstream stream_bytes;
+  ASSERT_TRUE(db.Write(stream_bytes).ok());
+  EXPECT_EQ(stream_bytes.str(), file_bytes.str());
+  EXPECT_FALSE(stream_bytes.str().empty());
 }
 
 TEST(DescriptorDatabaseTest, CorruptOrTruncatedFilesAreRefusedWithTheFileName) {

@@ -90,3 +90,8 @@ msm_source_workspace() {
   export ROS_HOME="${ROS_HOME:-${MSM_WS}/ros_home}"
   mkdir -p "${ROS_HOME}"
 }
+
+# Bag file names of a simulator output folder, in recording order (from its sessions.yaml).
+msm_session_bags() {
+  /usr/bin/python3 -c "import yaml,sys; [print(s['bag']) for s in yaml.safe_load(open(sys.argv[1]))['sessions']]" "$1/sessions.yaml"
+}

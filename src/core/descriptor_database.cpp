@@ -13,6 +13,8 @@
 #include <Eigen/Eigenvalues>
 #include <nanoflann.hpp>
 
+#include "multisession_mapper/core/checksum.h"
+
 namespace multisession_mapper {
 namespace core {
 namespace {
@@ -25,20 +27,12 @@ constexpr std::uint32_t kMaxKeyDim = 1u << 16;
 constexpr std::uint64_t kMaxMatrixSize = 1u << 20;
 constexpr std::uint32_t kMaxSessionNameLength = 4096;
 
-constexpr std::uint64_t kFnvOffset = 1469598103934665603ull;
-constexpr std::uint64_t kFnvPrime = 1099511628211ull;
-
-std::uint64_t Fnv1a(std::uint64_t hash, const void* data, std::size_t size) {
-  const auto* bytes = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < size; ++i) hash = (hash ^ bytes[i]) * kFnvPrime;
-  return hash;
-}
 
 class HashingWriter {
  public:
-  explicit HashingWriter(std::ofstream* out) : out_(out) {}
+  explicit HashingWriter(std::ostream* out) : out_(out) {}
   void Bytes(const void* data, std::size_t size) {
-    hash_ = Fnv1a(hash_, data, size);
+    hash_ = Fnv1a64(data, size, hash_);
     out_->write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
   }
   template <typename T>
@@ -48,8 +42,8 @@ class HashingWriter {
   std::uint64_t hash() const { return hash_; }
 
  private:
-  std::ofstream* out_;
-  std::uint64_t hash_ = kFnvOffset;
+  std::ostream* out_;
+  std::uint64_t hash_ = kFnv1a64Offset;
 };
 
 class HashingReader {
@@ -61,7 +55,7 @@ class HashingReader {
     in_->read(static_cast<char*>(data), static_cast<std::streamsize>(size));
     if (!*in_) return false;
     remaining_ -= size;
-    hash_ = Fnv1a(hash_, data, size);
+    hash_ = Fnv1a64(data, size, hash_);
     return true;
   }
   template <typename T>
@@ -74,7 +68,7 @@ class HashingReader {
  private:
   std::ifstream* in_;
   std::uint64_t remaining_;
-  std::uint64_t hash_ = kFnvOffset;
+  std::uint64_t hash_ = kFnv1a64Offset;
 };
 
 // nanoflann result set: every index within `radius` (squared distance, inclusive), stopping
@@ -426,8 +420,43 @@ StatusOr<DatabaseQueryResult> DescriptorDatabase::Query(const PlaceDescriptor& d
   return result;
 }
 
-Status DescriptorDatabase::Save(const std::string& path) const {
+Status DescriptorDatabase::Write(std::ostream& out) const {
   const Impl& d = *impl_;
+  // Session names are stored once; entries refer to them by index.
+  std::vector<std::string> sessions;
+  std::vector<std::uint32_t> session_of(d.entries.size());
+  for (std::size_t i = 0; i < d.entries.size(); ++i) {
+    auto it = std::find(sessions.begin(), sessions.end(), d.entries[i].session);
+    if (it == sessions.end()) it = sessions.insert(sessions.end(), d.entries[i].session);
+    session_of[i] = static_cast<std::uint32_t>(it - sessions.begin());
+  }
+  HashingWriter w(&out);
+  w.Bytes(kMagic, sizeof(kMagic));
+  w.Value<std::uint32_t>(kFormatVersion);
+  w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.kind));
+  w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.key_dim));
+  w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.rows));
+  w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.cols));
+  w.Value<std::uint32_t>(static_cast<std::uint32_t>(sessions.size()));
+  w.Value<std::uint64_t>(d.entries.size());
+  for (const std::string& s : sessions) {
+    w.Value<std::uint32_t>(static_cast<std::uint32_t>(s.size()));
+    w.Bytes(s.data(), s.size());
+  }
+  for (std::size_t i = 0; i < d.entries.size(); ++i) {
+    w.Value<std::uint32_t>(session_of[i]);
+    w.Value<std::int32_t>(d.entries[i].submap_id);
+    w.Value<double>(d.entries[i].stamp_s);
+    w.Bytes(d.keys.data() + i * d.key_dim, sizeof(float) * d.key_dim);
+    w.Bytes(d.matrices.data() + i * d.matrix_size(), sizeof(float) * d.matrix_size());
+  }
+  const std::uint64_t checksum = w.hash();
+  out.write(reinterpret_cast<const char*>(&checksum), sizeof(checksum));
+  if (!out) return Status::Error("descriptor_database: write failed");
+  return Status::Ok();
+}
+
+Status DescriptorDatabase::Save(const std::string& path) const {
   std::error_code ec;
   const std::filesystem::path target(path);
   if (target.has_parent_path()) std::filesystem::create_directories(target.parent_path(), ec);
@@ -435,38 +464,12 @@ Status DescriptorDatabase::Save(const std::string& path) const {
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return Status::Error("descriptor_database: cannot write " + tmp);
-    // Session names are stored once; entries refer to them by index.
-    std::vector<std::string> sessions;
-    std::vector<std::uint32_t> session_of(d.entries.size());
-    for (std::size_t i = 0; i < d.entries.size(); ++i) {
-      auto it = std::find(sessions.begin(), sessions.end(), d.entries[i].session);
-      if (it == sessions.end()) it = sessions.insert(sessions.end(), d.entries[i].session);
-      session_of[i] = static_cast<std::uint32_t>(it - sessions.begin());
-    }
-    HashingWriter w(&out);
-    w.Bytes(kMagic, sizeof(kMagic));
-    w.Value<std::uint32_t>(kFormatVersion);
-    w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.kind));
-    w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.key_dim));
-    w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.rows));
-    w.Value<std::uint32_t>(static_cast<std::uint32_t>(d.cols));
-    w.Value<std::uint32_t>(static_cast<std::uint32_t>(sessions.size()));
-    w.Value<std::uint64_t>(d.entries.size());
-    for (const std::string& s : sessions) {
-      w.Value<std::uint32_t>(static_cast<std::uint32_t>(s.size()));
-      w.Bytes(s.data(), s.size());
-    }
-    for (std::size_t i = 0; i < d.entries.size(); ++i) {
-      w.Value<std::uint32_t>(session_of[i]);
-      w.Value<std::int32_t>(d.entries[i].submap_id);
-      w.Value<double>(d.entries[i].stamp_s);
-      w.Bytes(d.keys.data() + i * d.key_dim, sizeof(float) * d.key_dim);
-      w.Bytes(d.matrices.data() + i * d.matrix_size(), sizeof(float) * d.matrix_size());
-    }
-    const std::uint64_t checksum = w.hash();
-    out.write(reinterpret_cast<const char*>(&checksum), sizeof(checksum));
+    Status written = Write(out);
     out.close();
-    if (!out) return Status::Error("descriptor_database: writing " + tmp + " failed");
+    if (!written.ok() || !out) {
+      std::filesystem::remove(tmp, ec);
+      return Status::Error("descriptor_database: writing " + tmp + " failed");
+    }
   }
   std::filesystem::rename(tmp, path, ec);
   if (ec) {

@@ -15,6 +15,7 @@
 #include <pcl/point_types.h>
 #include <yaml-cpp/yaml.h>
 
+#include "multisession_mapper/core/checksum.h"
 #include "multisession_mapper/core/se3.h"
 #include "multisession_mapper/core/trajectory_io.h"
 
@@ -28,15 +29,6 @@ constexpr const char* kManifest = "manifest.yaml";
 constexpr const char* kGraph = "graph.g2o";
 // Files larger than this are refused on load: a corrupt manifest must not make us allocate.
 constexpr std::uintmax_t kMaxFileBytes = 4ull << 30;
-
-std::uint64_t Fnv1a64(const std::string& bytes) {
-  std::uint64_t hash = 1469598103934665603ull;
-  for (unsigned char c : bytes) {
-    hash ^= c;
-    hash *= 1099511628211ull;
-  }
-  return hash;
-}
 
 std::string Hex(std::uint64_t v) {
   std::ostringstream out;
@@ -226,11 +218,17 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
   };
   const Status kAborted = Status::Error("save aborted by the test hook (simulated crash)");
   std::vector<std::string> written;  // relative paths, for the manifest's file list
+  // Size and checksum of files written from memory; the others (PCL's PCDs, hard links) are
+  // read back once for the manifest.
+  std::map<std::string, std::pair<std::uint64_t, std::uint64_t>> known_sums;
 
   auto put = [&](const std::string& rel, const std::string& bytes) -> Status {
     if (!SafeRelativePath(rel)) return Status::Error("refusing unsafe map file name '" + rel + "'");
     Status s = WriteDurably(fresh / rel, bytes);
-    if (s.ok()) written.push_back(rel);
+    if (s.ok()) {
+      written.push_back(rel);
+      known_sums[rel] = {bytes.size(), Fnv1a64(bytes)};
+    }
     return s;
   };
 
@@ -340,11 +338,15 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
   out << YAML::EndSeq;
   out << YAML::Key << "files" << YAML::Value << YAML::BeginMap;
   for (const std::string& rel : written) {
-    StatusOr<std::string> bytes = ReadWholeFile(fresh / rel);
-    if (!bytes.ok()) return bytes.status();
+    auto sum = known_sums.find(rel);
+    if (sum == known_sums.end()) {
+      StatusOr<std::string> bytes = ReadWholeFile(fresh / rel);
+      if (!bytes.ok()) return bytes.status();
+      sum = known_sums.emplace(rel, std::make_pair(bytes.value().size(), Fnv1a64(bytes.value()))).first;
+    }
     out << YAML::Key << rel << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "bytes"
-        << YAML::Value << bytes.value().size() << YAML::Key << "fnv1a64" << YAML::Value
-        << Hex(Fnv1a64(bytes.value())) << YAML::EndMap;
+        << YAML::Value << sum->second.first << YAML::Key << "fnv1a64" << YAML::Value
+        << Hex(sum->second.second) << YAML::EndMap;
   }
   out << YAML::EndMap;
   out << YAML::EndMap;

@@ -47,7 +47,6 @@ struct SessionMapper::State {
   std::map<std::uint32_t, SubmapTarget> targets;  // registration targets, built on demand
   LoopRecords loops;
   SessionTimings timings;
-  Trajectory odometry_trajectory;
   bool has_last = false;
   OdometryResult last;
   std::size_t processed = 0;
@@ -205,10 +204,6 @@ Status SessionMapper::AddScan(const LidarScan& raw_scan) {
   }
   ++st.processed;
   st.timings.odometry_ms.push_back(result.value().timing.total_ms);
-  StampedPose sp;
-  sp.stamp_s = result.value().stamp_s;
-  sp.pose = result.value().pose;
-  st.odometry_trajectory.push_back(sp);
 
   const auto start = std::chrono::steady_clock::now();
   st.builder.AddScan(result.value().deskewed_scan, result.value().pose);
@@ -252,7 +247,7 @@ StatusOr<SessionResult> SessionMapper::Finish() {
             [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
   result.submaps = std::move(st.submaps);
   result.graph = st.graph;
-  result.odometry = st.odometry_trajectory;
+  result.odometry = st.odometry.trajectory();
   result.loops = st.loops;
   result.timings = st.timings;
   result.scans_processed = st.processed;

@@ -57,34 +57,33 @@ void Terrain::Locate(double x_m, double y_m, int* cx, int* cy, double* u, double
   *v = cgy - *cy;
 }
 
-double Terrain::Height(double x_m, double y_m) const {
+void Terrain::Facet(double x_m, double y_m, double* h00, double* u, double* v, double* dzdu,
+                    double* dzdv) const {
   int cx, cy;
-  double u, v;
-  Locate(x_m, y_m, &cx, &cy, &u, &v);
-  const double h00 = Vertex(cx, cy);
+  Locate(x_m, y_m, &cx, &cy, u, v);
+  *h00 = Vertex(cx, cy);
   const double h10 = Vertex(cx + 1, cy);
   const double h01 = Vertex(cx, cy + 1);
   const double h11 = Vertex(cx + 1, cy + 1);
-  if (u >= v) return h00 + u * (h10 - h00) + v * (h11 - h10);
-  return h00 + u * (h11 - h01) + v * (h01 - h00);
+  // Each cell is split into two triangles along its diagonal.
+  if (*u >= *v) {
+    *dzdu = h10 - *h00;
+    *dzdv = h11 - h10;
+  } else {
+    *dzdu = h11 - h01;
+    *dzdv = h01 - *h00;
+  }
+}
+
+double Terrain::Height(double x_m, double y_m) const {
+  double h00, u, v, dzdu, dzdv;
+  Facet(x_m, y_m, &h00, &u, &v, &dzdu, &dzdv);
+  return h00 + u * dzdu + v * dzdv;
 }
 
 Eigen::Vector3d Terrain::Normal(double x_m, double y_m) const {
-  int cx, cy;
-  double u, v;
-  Locate(x_m, y_m, &cx, &cy, &u, &v);
-  const double h00 = Vertex(cx, cy);
-  const double h10 = Vertex(cx + 1, cy);
-  const double h01 = Vertex(cx, cy + 1);
-  const double h11 = Vertex(cx + 1, cy + 1);
-  double dzdu, dzdv;
-  if (u >= v) {
-    dzdu = h10 - h00;
-    dzdv = h11 - h10;
-  } else {
-    dzdu = h11 - h01;
-    dzdv = h01 - h00;
-  }
+  double h00, u, v, dzdu, dzdv;
+  Facet(x_m, y_m, &h00, &u, &v, &dzdu, &dzdv);
   const double r = grid_.resolution_m;
   return Eigen::Vector3d(-dzdu / r, -dzdv / r, 1.0).normalized();
 }

@@ -3,14 +3,12 @@
 // drives the core SessionMapper, hands the result to the map update and saves atomically.
 //   offline_mapper --bag day1.bag [--bag day2.bag ...] --map campus_map/ [options]
 #include <sys/resource.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -58,22 +56,6 @@ double PeakRssMb() {
   struct rusage usage;
   getrusage(RUSAGE_SELF, &usage);
   return usage.ru_maxrss / 1024.0;
-}
-
-// The database file of a map, read into memory (the map store writes it with the rest).
-core::StatusOr<std::string> DatabaseBytes(const core::PlaceRecognizer& recognizer,
-                                          const std::string& scratch_path) {
-  core::StatusOr<core::DescriptorDatabase> database = recognizer.NewDatabase();
-  if (!database.ok()) return database.status();
-  core::Status s = recognizer.AppendTo(&database.value());
-  if (s.ok()) s = database.value().Save(scratch_path);
-  if (!s.ok()) return s;
-  std::ifstream in(scratch_path, std::ios::binary);
-  std::stringstream bytes;
-  bytes << in.rdbuf();
-  std::remove(scratch_path.c_str());
-  if (!in) return core::Status::Error("cannot read back '" + scratch_path + "'");
-  return bytes.str();
 }
 
 std::string UtcNow() {
@@ -137,7 +119,6 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
                                 : reader.value().num_messages();
   msm::tools::Progress progress(name, total, "scans", !options.quiet);
   std::size_t bad_scans = 0;
-  double first_stamp = -1.0, last_stamp = -1.0;
   const core::Status read = reader.value().ForEach(
       [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
         if (options.max_scans > 0 && index >= static_cast<std::size_t>(options.max_scans)) return false;
@@ -146,14 +127,9 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
           status = recognizer.value().AddScan(mapper.value().last_odometry()->deskewed_scan,
                                               mapper.value().current_submap_id());
         }
-        if (!status.ok()) {
-          if (++bad_scans <= 5) {
-            std::fprintf(stderr, "\noffline_mapper: scan %zu skipped: %s\n", index,
-                         status.message().c_str());
-          }
-        } else {
-          if (first_stamp < 0) first_stamp = scan.value().stamp_s;
-          last_stamp = scan.value().stamp_s;
+        if (!status.ok() && ++bad_scans <= 5) {
+          std::fprintf(stderr, "\noffline_mapper: scan %zu skipped: %s\n", index,
+                       status.message().c_str());
         }
         progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
         return true;
@@ -174,7 +150,8 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   record.name = name;
   record.bag = std::filesystem::path(bag_path).filename().string();
   record.scans = static_cast<std::uint32_t>(result.value().scans_processed);
-  record.duration_s = last_stamp > first_stamp ? last_stamp - first_stamp : 0.0;
+  const core::Trajectory& scans = result.value().trajectory;
+  record.duration_s = scans.back().stamp_s - scans.front().stamp_s;
   record.merged_at = UtcNow();
   result.value().timings.descriptor_ms = recognizer.value().descriptor_ms();
   result.value().timings.query_ms = recognizer.value().query_ms();
@@ -186,15 +163,16 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     return 1;
   }
   map.parameters_yaml = core::PipelineConfigToYaml(config);
-  core::StatusOr<std::string> database = DatabaseBytes(
-      recognizer.value(), std::filesystem::temp_directory_path().string() + "/msm_database_" +
-                              std::to_string(::getpid()) + ".bin");
-  if (!database.ok()) {
-    std::fprintf(stderr, "offline_mapper: place database: %s\n",
-                 database.status().message().c_str());
+  core::StatusOr<core::DescriptorDatabase> database = recognizer.value().NewDatabase();
+  core::Status db_status = database.ok() ? recognizer.value().AppendTo(&database.value())
+                                         : database.status();
+  std::ostringstream database_bytes;
+  if (db_status.ok()) db_status = database.value().Write(database_bytes);
+  if (!db_status.ok()) {
+    std::fprintf(stderr, "offline_mapper: place database: %s\n", db_status.message().c_str());
     return 1;
   }
-  map.files["database/descriptors.bin"] = database.value();
+  map.files["database/descriptors.bin"] = database_bytes.str();
   core::SessionRunInfo run;
   run.bag_duration_s = record.duration_s;
   run.merge_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - merge_start).count();

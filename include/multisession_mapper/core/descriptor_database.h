@@ -35,6 +35,7 @@
 #pragma once
 
 #include <cstddef>
+#include <iosfwd>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -140,6 +141,8 @@ class DescriptorDatabase {
 
   /// Writes the file atomically (temporary sibling + rename).
   Status Save(const std::string& path) const;
+  /// Writes the same bytes as Save() to a stream (the map store writes them with the map).
+  Status Write(std::ostream& out) const;
 
   std::size_t size() const;
   const DatabaseEntry& entry(std::size_t index) const;

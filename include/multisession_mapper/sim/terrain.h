@@ -58,6 +58,9 @@ class Terrain {
   double Vertex(int ix, int iy) const { return grid_.heights_m[iy * grid_.cols + ix]; }
   /// Cell index and local coordinates (u, v) in [0, 1] of a position (clamped).
   void Locate(double x_m, double y_m, int* cx, int* cy, double* u, double* v) const;
+  /// The triangle under (x, y): corner height, cell coordinates and slopes per cell.
+  void Facet(double x_m, double y_m, double* h00, double* u, double* v, double* dzdu,
+             double* dzdv) const;
 
   TerrainGrid grid_;
 };
