@@ -3,10 +3,12 @@
 # multi-session campus (cached), maps every session into one map, evaluates it against the
 # simulator's ground truth and prints the paper-style tables.
 #   scripts/demo.sh [--profile small|campus] [--sessions N] [--seed S] [--out DIR]
+#                   [--rviz-screenshot]   (also: RViz under Xvfb showing the map, OUT/rviz_mapping.png)
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib/common.sh"
 
 profile=small
+rviz_screenshot=0
 sessions=3
 seed=1
 out="${MSM_REPO}/demo_output"
@@ -16,7 +18,8 @@ while [ $# -gt 0 ]; do
     --sessions) sessions="$2"; shift 2 ;;
     --seed) seed="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
-    -h|--help) sed -n '2,6p' "$0"; exit 0 ;;
+    --rviz-screenshot) rviz_screenshot=1; shift ;;
+    -h|--help) sed -n '2,7p' "$0"; exit 0 ;;
     *) msm_die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -56,8 +59,8 @@ if [ -x "${bin}/offline_mapper" ] && [ -f "${data}/sessions.yaml" ]; then
     code=$?
     set -e
     if [ ${code} -eq 3 ]; then
-      missing+=("merging sessions after the first into the map (issue 7): only the first session was mapped")
-      break
+      missing+=("${bag} could not be merged into the map (message above); the map keeps the other sessions")
+      continue
     fi
     [ ${code} -eq 0 ] || msm_die "offline_mapper failed on ${bag}"
   done
@@ -73,11 +76,22 @@ else
   missing+=("evaluation skipped: it needs a map from step 2")
 fi
 
+# 4. Optional: RViz (rviz/mapping.rviz) showing the map, its loops and removed points.
+if [ ${rviz_screenshot} -eq 1 ]; then
+  if [ -f "${map}/manifest.yaml" ]; then
+    "${MSM_REPO}/scripts/rviz_screenshot.sh" --map "${map}" --out "${out}/rviz_mapping.png" \
+      || missing+=("the RViz screenshot failed (log: ${out}/rviz_mapping.log)")
+  else
+    missing+=("RViz screenshot skipped: it needs a map from step 2")
+  fi
+fi
+
 echo
 echo "outputs:"
 [ -d "${data}" ] && echo "  simulated sessions and ground truth: ${data}"
 [ -d "${map}" ] && echo "  map directory:                        ${map}"
 [ -d "${report}" ] && echo "  evaluation report (md, json, png):    ${report}"
+[ -f "${out}/rviz_mapping.png" ] && echo "  RViz screenshot:                      ${out}/rviz_mapping.png"
 if [ ${#missing[@]} -gt 0 ]; then
   echo
   echo "not available yet in this version:"

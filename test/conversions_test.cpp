@@ -168,6 +168,40 @@ TEST(Conversions, PoseRoundTripAndInvalidPose) {
   EXPECT_FALSE(FromPoseMsg(nan_pose).ok());
 }
 
+TEST(Conversions, LoopRecordToMessage) {
+  core::LoopRecord record;
+  record.current_session = "s01";
+  record.current_submap = 7;
+  record.history_session = "s00";
+  record.history_submap = 3;
+  record.status = core::LoopStatus::kAccepted;
+  record.vote_proportion = 0.97;
+  record.overlap_ratio = std::numeric_limits<double>::quiet_NaN();
+  record.has_pose = true;
+  record.T_history_current.translation() = Eigen::Vector3d(1, 2, 3);
+  record.reason = "ok";
+  const multisession_mapper::LoopCandidate msg = ToLoopCandidateMsg(record);
+  EXPECT_EQ(msg.current_session, "s01");
+  EXPECT_EQ(msg.current_submap, 7u);
+  EXPECT_EQ(msg.history_submap, 3u);
+  EXPECT_EQ(msg.status, multisession_mapper::LoopCandidate::ACCEPTED);
+  EXPECT_FLOAT_EQ(msg.vote_proportion, 0.97f);
+  EXPECT_EQ(msg.overlap_ratio, 0.0f);  // NaN is not sent
+  EXPECT_DOUBLE_EQ(msg.relative_pose.position.z, 3.0);
+
+  core::LoopRecord undefined;
+  undefined.status = core::LoopStatus::kUndefined;
+  undefined.history_submap = -1;
+  undefined.vote_proportion = std::numeric_limits<double>::infinity();
+  const multisession_mapper::LoopCandidate u = ToLoopCandidateMsg(undefined);
+  EXPECT_EQ(u.status, multisession_mapper::LoopCandidate::UNDEFINED);
+  EXPECT_EQ(u.history_submap, 0u);
+  EXPECT_EQ(u.vote_proportion, 0.0f);
+  EXPECT_DOUBLE_EQ(u.relative_pose.orientation.w, 1.0);
+  EXPECT_EQ(ToLoopStatusMsg(core::LoopStatus::kCandidate), multisession_mapper::LoopCandidate::CANDIDATE);
+  EXPECT_EQ(ToLoopStatusMsg(core::LoopStatus::kRejected), multisession_mapper::LoopCandidate::REJECTED);
+}
+
 TEST(Conversions, TimeConversion) {
   EXPECT_NEAR(ToSeconds(ToRosTime(1700000000.123456)), 1700000000.123456, 1e-6);
   EXPECT_EQ(ToRosTime(std::numeric_limits<double>::quiet_NaN()), ros::Time(0));

@@ -72,6 +72,109 @@ TEST_F(SessionMapperLoop, ClosesTheLoopAndTracksGroundTruth) {
   EXPECT_EQ(odometry_edges, static_cast<int>(r.submaps.size()) - 1);
 }
 
+// The nodelets run the odometry in ScanMatchingNodelet and hand the registered scans to
+// SubmapManagerNodelet (AddRegisteredScan): the result must equal AddScan's, so that online
+// and offline runs match.
+TEST_F(SessionMapperLoop, SplitPathEqualsAddScan) {
+  SessionMapperConfig config;
+  StatusOr<SessionMapper> whole = SessionMapper::Create(config, "s00");
+  StatusOr<SessionMapper> split = SessionMapper::Create(config, "s00");
+  StatusOr<Odometry> odometry = Odometry::Create(config.odometry);
+  ASSERT_TRUE(whole.ok() && split.ok() && odometry.ok());
+  const double period = 0.1;
+  const int scans = static_cast<int>(trajectory_.duration_s() / period) - 1;
+  for (int i = 0; i < scans; ++i) {
+    const LidarScan scan = test::SimulateVlp16(
+        scene_, [&](double t) { return Truth(t); }, i * period, 100 + i, 0.02, 900);
+    ASSERT_TRUE(whole.value().AddScan(scan).ok()) << "scan " << i;
+    StatusOr<OdometryResult> registered = odometry.value().ProcessScan(scan);
+    ASSERT_TRUE(registered.ok()) << "scan " << i;
+    ASSERT_TRUE(split.value().AddRegisteredScan(registered.value()).ok()) << "scan " << i;
+    EXPECT_EQ(whole.value().current_submap_id(), split.value().current_submap_id());
+  }
+  // While mapping, the accessors the SubmapManagerNodelet publishes from agree too.
+  ASSERT_EQ(whole.value().num_finished_submaps(), split.value().num_finished_submaps());
+  ASSERT_GE(split.value().num_finished_submaps(), 3u);
+  for (std::uint32_t id = 0; id < split.value().num_finished_submaps(); ++id) {
+    EXPECT_TRUE(whole.value().SubmapOrigin(id).isApprox(split.value().SubmapOrigin(id), 1e-12));
+    EXPECT_EQ(whole.value().finished_submap(id).points.size(),
+              split.value().finished_submap(id).points.size());
+  }
+  EXPECT_TRUE(whole.value().SessionFromOdometry().isApprox(split.value().SessionFromOdometry(),
+                                                           1e-12));
+  EXPECT_EQ(whole.value().loops().size(), split.value().loops().size());
+
+  StatusOr<SessionResult> a = whole.value().Finish();
+  StatusOr<SessionResult> b = split.value().Finish();
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a.value().submaps.size(), b.value().submaps.size());
+  ASSERT_EQ(a.value().trajectory.size(), b.value().trajectory.size());
+  for (std::size_t i = 0; i < a.value().trajectory.size(); ++i) {
+    EXPECT_EQ(a.value().trajectory[i].stamp_s, b.value().trajectory[i].stamp_s);
+    EXPECT_TRUE(a.value().trajectory[i].pose.isApprox(b.value().trajectory[i].pose, 1e-12));
+  }
+  ASSERT_EQ(a.value().odometry.size(), b.value().odometry.size());
+  for (std::size_t i = 0; i < a.value().odometry.size(); ++i) {
+    EXPECT_TRUE(a.value().odometry[i].pose.isApprox(b.value().odometry[i].pose, 1e-12));
+  }
+  ASSERT_EQ(a.value().loops.size(), b.value().loops.size());
+  for (std::size_t i = 0; i < a.value().loops.size(); ++i) {
+    EXPECT_EQ(a.value().loops[i].status, b.value().loops[i].status);
+    EXPECT_EQ(a.value().loops[i].history_submap, b.value().loops[i].history_submap);
+  }
+  EXPECT_EQ(a.value().scans_processed, b.value().scans_processed);
+}
+
+TEST(SessionMapper, SplitPathRefusesStampsThatDoNotIncrease) {
+  StatusOr<SessionMapper> mapper = SessionMapper::Create(SessionMapperConfig(), "s");
+  ASSERT_TRUE(mapper.ok());
+  OdometryResult r;
+  r.stamp_s = 2.0;
+  r.deskewed_scan.stamp_s = 2.0;
+  LidarPoint p;
+  p.position_m = Eigen::Vector3f(5.0f, 0.0f, 0.0f);
+  r.deskewed_scan.points.push_back(p);
+  ASSERT_TRUE(mapper.value().AddRegisteredScan(r).ok());
+  EXPECT_FALSE(mapper.value().AddRegisteredScan(r).ok());  // same stamp
+  r.stamp_s = 1.0;
+  EXPECT_FALSE(mapper.value().AddRegisteredScan(r).ok());  // earlier stamp
+  r.stamp_s = 3.0;
+  r.deskewed_scan.points.clear();
+  EXPECT_FALSE(mapper.value().AddRegisteredScan(r).ok());  // empty scan
+}
+
+TEST(SessionMapper, UpdateConfigAppliesToTheNextScanAndRefusesInvalidValues) {
+  StatusOr<SessionMapper> mapper = SessionMapper::Create(SessionMapperConfig(), "s");
+  ASSERT_TRUE(mapper.ok());
+  SessionMapperConfig changed;
+  changed.submaps.max_translation_m = 5.0;
+  changed.intra_loops.search_radius_m = 7.0;
+  changed.odometry.map_voxel_size_m = 0.9;
+  ASSERT_TRUE(mapper.value().UpdateConfig(changed).ok());
+  EXPECT_EQ(mapper.value().config().submaps.max_translation_m, 5.0);
+  EXPECT_EQ(mapper.value().config().intra_loops.search_radius_m, 7.0);
+  // The odometry of AddScan keeps its creation config.
+  EXPECT_EQ(mapper.value().config().odometry.map_voxel_size_m, OdometryConfig().map_voxel_size_m);
+  SessionMapperConfig bad = changed;
+  bad.submaps.max_translation_m = -1.0;
+  EXPECT_FALSE(mapper.value().UpdateConfig(bad).ok());
+  EXPECT_EQ(mapper.value().config().submaps.max_translation_m, 5.0);
+
+  // 5 m submaps from the next scan on: driving 12 m in a straight line gives >= 2 submaps.
+  OdometryResult r;
+  LidarPoint p;
+  p.position_m = Eigen::Vector3f(5.0f, 1.0f, 0.0f);
+  r.deskewed_scan.points.assign(50, p);
+  for (int i = 0; i <= 24; ++i) {
+    r.stamp_s = 0.1 * (i + 1);
+    r.deskewed_scan.stamp_s = r.stamp_s;
+    r.pose = Pose3::Identity();
+    r.pose.translation() = Eigen::Vector3d(0.5 * i, 0.0, 0.0);
+    ASSERT_TRUE(mapper.value().AddRegisteredScan(r).ok());
+  }
+  EXPECT_GE(mapper.value().current_submap_id(), 2u);
+}
+
 TEST(SessionMapper, SkipsBadScansAndKeepsGoing) {
   StatusOr<SessionMapper> mapper = SessionMapper::Create(SessionMapperConfig(), "s01");
   ASSERT_TRUE(mapper.ok());

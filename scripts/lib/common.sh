@@ -25,7 +25,9 @@ MSM_APT_PACKAGES=(
   liboctomap-dev libceres-dev libnanoflann-dev libyaml-cpp-dev
   python3-rostest libgtest-dev python3-pytest
   python3-numpy python3-matplotlib python3-yaml python3-scipy pcl-tools
-  xvfb imagemagick
+  xvfb imagemagick python3-nav-msgs   # the last one: scripts/rviz_publish_map.py (Path)
+  # reliability (issue 9): libFuzzer + sanitizers of scripts/fuzz.sh (clang's runtime libraries)
+  clang libclang-rt-14-dev
 )
 
 msm_install_deps() {

@@ -48,7 +48,7 @@ class HashingWriter {
 
 class HashingReader {
  public:
-  HashingReader(std::ifstream* in, std::uint64_t size) : in_(in), remaining_(size) {}
+  HashingReader(std::istream* in, std::uint64_t size) : in_(in), remaining_(size) {}
   // False (and reads nothing) when fewer than `size` bytes are left or the stream fails.
   bool Bytes(void* data, std::size_t size) {
     if (size > remaining_) return false;
@@ -66,7 +66,7 @@ class HashingReader {
   std::uint64_t hash() const { return hash_; }
 
  private:
-  std::ifstream* in_;
+  std::istream* in_;
   std::uint64_t remaining_;
   std::uint64_t hash_ = kFnv1a64Offset;
 };
@@ -487,6 +487,13 @@ StatusOr<DescriptorDatabase> DescriptorDatabase::Load(const std::string& path,
   if (ec) return Status::Error(where + "cannot read the file (" + ec.message() + ")");
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status::Error(where + "cannot open the file");
+  return Read(in, file_size, path, config);
+}
+
+StatusOr<DescriptorDatabase> DescriptorDatabase::Read(std::istream& in, std::uint64_t file_size,
+                                                      const std::string& source,
+                                                      const DescriptorDatabaseConfig& config) {
+  const std::string where = "descriptor_database: " + source + ": ";
   constexpr std::uint64_t kChecksumSize = sizeof(std::uint64_t);
   if (file_size < sizeof(kMagic) + kChecksumSize) {
     return Status::Error(where + "truncated (" + std::to_string(file_size) +

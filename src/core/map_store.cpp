@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -144,7 +145,125 @@ Status WritePcd(const fs::path& path, const PointVector& points) {
   return FsyncPath(path, false);
 }
 
+// Checks a PCD file's header against the PCD v0.7 format and the file's length before PCL's
+// reader sees it. PCL's PCDReader trusts the header: fuzzing the map loader
+// (test/fuzz/fuzz_submap_pcd) crashed it with an empty file (null dereference in
+// PCDReader::read, test map_store_fuzz_regression_test). We keep PCL for the parsing (ascii,
+// binary, LZF-compressed binary) and refuse here whatever it would have to trust: a missing or
+// inconsistent header, sizes that do not add up, data shorter than the header promises.
+Status ValidatePcd(const std::string& bytes, const std::string& name) {
+  const auto error = [&](const std::string& what) {
+    return Status::Error("corrupt point cloud '" + name + "': " + what);
+  };
+  constexpr std::size_t kMaxHeaderBytes = 1 << 16;
+  constexpr std::uint64_t kMaxPoints = 1ull << 31;
+  std::vector<std::string> fields, sizes, types, counts;
+  std::uint64_t width = 0, height = 0, points = 0;
+  bool has_width = false, has_height = false, has_points = false;
+  std::string data_kind;
+  std::size_t pos = 0;
+  const auto parse_count = [](const std::string& text, std::uint64_t* out) {
+    if (text.empty() || text.size() > 12) return false;
+    for (char c : text) {
+      if (c < '0' || c > '9') return false;
+    }
+    *out = std::stoull(text);
+    return true;
+  };
+  while (data_kind.empty()) {
+    if (pos >= bytes.size() || pos > kMaxHeaderBytes) return error("no DATA line in the header");
+    std::size_t end = bytes.find('\n', pos);
+    if (end == std::string::npos) end = bytes.size();
+    std::istringstream line(bytes.substr(pos, end - pos));
+    pos = end + 1;
+    std::string key;
+    if (!(line >> key) || key[0] == '#') continue;
+    std::vector<std::string> values;
+    for (std::string v; line >> v;) values.push_back(v);
+    if (key == "FIELDS") {
+      fields = values;
+    } else if (key == "SIZE") {
+      sizes = values;
+    } else if (key == "TYPE") {
+      types = values;
+    } else if (key == "COUNT") {
+      counts = values;
+    } else if (key == "WIDTH") {
+      has_width = values.size() == 1 && parse_count(values[0], &width);
+      if (!has_width) return error("bad WIDTH");
+    } else if (key == "HEIGHT") {
+      has_height = values.size() == 1 && parse_count(values[0], &height);
+      if (!has_height) return error("bad HEIGHT");
+    } else if (key == "POINTS") {
+      has_points = values.size() == 1 && parse_count(values[0], &points);
+      if (!has_points) return error("bad POINTS");
+    } else if (key == "DATA") {
+      if (values.size() != 1) return error("bad DATA line");
+      data_kind = values[0];
+    } else if (key != "VERSION" && key != "VIEWPOINT") {
+      return error("unknown header line '" + key + "'");
+    }
+  }
+  if (fields.empty() || fields.size() > 64) return error("FIELDS must list 1 to 64 fields");
+  if (counts.empty()) counts.assign(fields.size(), "1");
+  if (sizes.size() != fields.size() || types.size() != fields.size() ||
+      counts.size() != fields.size()) {
+    return error("FIELDS, SIZE, TYPE and COUNT differ in length");
+  }
+  std::uint64_t point_bytes = 0;
+  std::uint64_t point_values = 0;
+  int xyz = 0;
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    std::uint64_t size = 0, count = 0;
+    if (!parse_count(sizes[i], &size) || !(size == 1 || size == 2 || size == 4 || size == 8)) {
+      return error("field '" + fields[i] + "' has SIZE '" + sizes[i] + "'");
+    }
+    if (!(types[i] == "F" || types[i] == "I" || types[i] == "U") ||
+        (types[i] == "F" && size != 4 && size != 8)) {
+      return error("field '" + fields[i] + "' has TYPE '" + types[i] + "'");
+    }
+    if (!parse_count(counts[i], &count) || count < 1 || count > 4096) {
+      return error("field '" + fields[i] + "' has COUNT '" + counts[i] + "'");
+    }
+    if (fields[i] == "x" || fields[i] == "y" || fields[i] == "z") {
+      if (types[i] != "F" || count != 1) return error("field '" + fields[i] + "' must be one float");
+      ++xyz;
+    }
+    point_bytes += size * count;
+    point_values += count;
+  }
+  if (xyz != 3) return error("needs the fields x, y and z once each");
+  if (!has_width || !has_height || !has_points) return error("WIDTH, HEIGHT or POINTS missing");
+  if (width > kMaxPoints || height > kMaxPoints || width * height != points || points > kMaxPoints) {
+    return error("POINTS is not WIDTH x HEIGHT");
+  }
+  const std::uint64_t body = pos <= bytes.size() ? bytes.size() - pos : 0;
+  if (data_kind == "ascii") {
+    // Every value takes at least one character and a separator.
+    if (points * point_values * 2 > body + 1) return error("fewer data than POINTS");
+  } else if (data_kind == "binary") {
+    if (points * point_bytes > body) return error("binary data shorter than POINTS");
+  } else if (data_kind == "binary_compressed") {
+    if (points == 0) return Status::Ok();
+    std::uint32_t compressed = 0, uncompressed = 0;
+    if (body < 8) return error("compressed data has no size header");
+    std::memcpy(&compressed, bytes.data() + pos, 4);
+    std::memcpy(&uncompressed, bytes.data() + pos + 4, 4);
+    if (compressed == 0 || compressed > body - 8) return error("compressed size exceeds the file");
+    if (uncompressed != points * point_bytes) {
+      return error("uncompressed size does not match POINTS");
+    }
+  } else {
+    return error("unknown DATA '" + data_kind + "'");
+  }
+  return Status::Ok();
+}
+
 StatusOr<PointVector> ReadPcd(const fs::path& path) {
+  StatusOr<std::string> bytes = ReadWholeFile(path);
+  if (!bytes.ok()) return bytes.status();
+  Status valid = ValidatePcd(bytes.value(), path.string());
+  if (!valid.ok()) return valid;
   pcl::PointCloud<pcl::PointXYZ> cloud;
   pcl::PCDReader reader;
   if (reader.read(path.string(), cloud) < 0) {

@@ -24,6 +24,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
   InSessionDynamicFilterConfig& d = s.submaps.dynamic_filter;
   SubmapRegistrationConfig& r = s.intra_loops.registration;
   PlaceRecognizerConfig& p = c->place_recognition;
+  SessionMergerConfig& m = c->merge;
   return {
       {"input_filter", "min_range_m", &s.odometry.input_filter.min_range_m},
       {"input_filter", "max_range_m", &s.odometry.input_filter.max_range_m},
@@ -62,6 +63,35 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"place_recognition", "d_alpha_ring_histogram", &p.database.d_alpha_ring_histogram},
       {"place_recognition", "d_alpha_scan_context", &p.database.d_alpha_scan_context},
       {"place_recognition", "log_neighbours", &p.log_neighbours},
+      {"inter_session", "gamma", &m.matching.voting.gamma},
+      {"inter_session", "top_n", &m.matching.voting.top_n},
+      {"inter_session", "min_matched_scans", &m.matching.voting.min_matched_scans},
+      {"inter_session", "neighbour_distance_m", &m.matching.neighbour_distance_m},
+      {"inter_session", "overlap_distance_m", &m.matching.registration.fine.overlap_distance_m},
+      {"inter_session", "min_overlap_ratio", &m.matching.registration.fine.min_overlap_ratio},
+      {"inter_session", "consistency_max_translation_m", &m.matching.consistency.max_translation_m},
+      {"inter_session", "consistency_max_rotation_rad", &m.matching.consistency.max_rotation_rad},
+      {"inter_session", "consistency_min_group_size", &m.matching.consistency.min_group_size},
+      {"inter_session", "loop_sigma_translation_m", &m.inter_sigma_translation_m},
+      {"inter_session", "loop_sigma_rotation_rad", &m.inter_sigma_rotation_rad},
+      {"proximity_loops", "enabled", &m.proximity.enabled},
+      {"proximity_loops", "search_radius_m", &m.proximity.search_radius_m},
+      {"proximity_loops", "max_candidates", &m.proximity.max_candidates},
+      {"proximity_loops", "overlap_distance_m", &m.proximity.registration.overlap_distance_m},
+      {"proximity_loops", "min_overlap_ratio", &m.proximity.registration.min_overlap_ratio},
+      {"proximity_loops", "max_correction_m", &m.proximity.registration.max_correction_m},
+      {"proximity_loops", "max_correction_rad", &m.proximity.registration.max_correction_rad},
+      {"low_dynamics", "seed_distance_m", &m.dynamics.seed_distance_m},
+      {"low_dynamics", "grow_radius_m", &m.dynamics.grow_radius_m},
+      {"low_dynamics", "grow_max_normal_angle_rad", &m.dynamics.grow_max_normal_angle_rad},
+      {"low_dynamics", "voxel_size_m", &m.dynamics.voxel_size_m},
+      {"low_dynamics", "height_guard_enabled", &m.dynamics.height_guard_enabled},
+      {"low_dynamics", "height_guard_m", &m.dynamics.height_guard_m},
+      {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},
+      {"map_update", "fuse_overlap_distance_m", &m.fusion.overlap_distance_m},
+      {"map_update", "fuse_voxel_m", &m.fusion.voxel_m},
+      {"map_update", "max_dynamic_fraction", &m.fusion.max_dynamic_fraction},
+      {"map_update", "num_threads", &m.num_threads},
   };
 }
 

@@ -113,8 +113,20 @@ StatusOr<DescriptorDatabase> PlaceRecognizer::NewDatabase() const {
 }
 
 Status PlaceRecognizer::AppendTo(DescriptorDatabase* database) const {
-  if (entries_.empty()) return Status::Ok();
-  return database->Insert(entries_, descriptors_);
+  return AppendTo(database, {});
+}
+
+Status PlaceRecognizer::AppendTo(DescriptorDatabase* database,
+                                 const std::set<std::uint32_t>& skip_submaps) const {
+  std::vector<DatabaseEntry> entries;
+  std::vector<PlaceDescriptor> descriptors;
+  for (std::size_t i = 0; i < entries_.size(); ++i) {
+    if (skip_submaps.count(static_cast<std::uint32_t>(entries_[i].submap_id))) continue;
+    entries.push_back(entries_[i]);
+    descriptors.push_back(descriptors_[i]);
+  }
+  if (entries.empty()) return Status::Ok();
+  return database->Insert(entries, descriptors);
 }
 
 }  // namespace core

@@ -51,6 +51,9 @@ struct SessionMapper::State {
   OdometryResult last;
   std::size_t processed = 0;
   std::size_t skipped = 0;
+  // Split path (AddRegisteredScan): the odometry ran outside; its poses are kept here.
+  bool split = false;
+  Trajectory split_odometry;
 
   State(const SessionMapperConfig& c, const std::string& s, Odometry o, SubmapBuilder b,
         SubmapRegistration r)
@@ -172,6 +175,18 @@ struct SessionMapper::State {
   void DrainBuilder() {
     for (Submap& submap : builder.TakeFinished()) AddFinishedSubmap(std::move(submap));
   }
+
+  // Everything after the odometry, shared by AddScan and AddRegisteredScan.
+  void AddOdometryResult(OdometryResult result) {
+    ++processed;
+    timings.odometry_ms.push_back(result.timing.total_ms);
+    const auto start = std::chrono::steady_clock::now();
+    builder.AddScan(result.deskewed_scan, result.pose);
+    timings.submap_building_ms.push_back(SecondsSince(start) * 1e3);
+    last = std::move(result);
+    has_last = true;
+    DrainBuilder();
+  }
 };
 
 SessionMapper::SessionMapper(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -202,16 +217,65 @@ Status SessionMapper::AddScan(const LidarScan& raw_scan) {
     ++st.skipped;
     return result.status();
   }
-  ++st.processed;
-  st.timings.odometry_ms.push_back(result.value().timing.total_ms);
-
-  const auto start = std::chrono::steady_clock::now();
-  st.builder.AddScan(result.value().deskewed_scan, result.value().pose);
-  st.timings.submap_building_ms.push_back(SecondsSince(start) * 1e3);
-  st.last = std::move(result.value());
-  st.has_last = true;
-  st.DrainBuilder();
+  st.AddOdometryResult(std::move(result.value()));
   return Status::Ok();
+}
+
+Status SessionMapper::AddRegisteredScan(const OdometryResult& registered) {
+  State& st = *state_;
+  if (!st.split_odometry.empty() && !(registered.stamp_s > st.split_odometry.back().stamp_s)) {
+    ++st.skipped;
+    return Status::Error("scan stamp does not increase; scan skipped");
+  }
+  if (registered.deskewed_scan.points.empty()) {
+    ++st.skipped;
+    return Status::Error("registered scan has no point; scan skipped");
+  }
+  st.split = true;
+  StampedPose sp;
+  sp.stamp_s = registered.stamp_s;
+  sp.pose = registered.pose;
+  st.split_odometry.push_back(sp);
+  st.AddOdometryResult(registered);
+  return Status::Ok();
+}
+
+Status SessionMapper::UpdateConfig(const SessionMapperConfig& config) {
+  State& st = *state_;
+  Status s = config.Validate();
+  if (!s.ok()) return s;
+  StatusOr<SubmapRegistration> registration =
+      SubmapRegistration::Create(config.intra_loops.registration);
+  if (!registration.ok()) return registration.status();
+  const OdometryConfig odometry = st.config.odometry;
+  st.config = config;
+  st.config.odometry = odometry;  // AddScan's odometry keeps its creation config
+  st.builder.set_config(config.submaps);
+  st.graph.set_config(config.pose_graph);
+  st.registration = std::move(registration.value());
+  st.targets.clear();  // built with the old registration config
+  return Status::Ok();
+}
+
+const SessionMapperConfig& SessionMapper::config() const { return state_->config; }
+
+Pose3 SessionMapper::SubmapOrigin(std::uint32_t id) const { return state_->graph.NodePose(id); }
+
+const Submap& SessionMapper::finished_submap(std::uint32_t id) const {
+  return state_->submaps[id];
+}
+
+Pose3 SessionMapper::SessionFromOdometry() const {
+  const State& st = *state_;
+  if (st.submaps.empty()) return Pose3::Identity();
+  const std::uint32_t last_id = st.submaps.back().id;
+  return st.graph.NodePose(last_id) * st.odom_origins[last_id].inverse();
+}
+
+const LoopRecords& SessionMapper::loops() const { return state_->loops; }
+
+std::size_t SessionMapper::num_optimisations() const {
+  return state_->timings.optimisation_s.size();
 }
 
 const OdometryResult* SessionMapper::last_odometry() const {
@@ -247,7 +311,7 @@ StatusOr<SessionResult> SessionMapper::Finish() {
             [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
   result.submaps = std::move(st.submaps);
   result.graph = st.graph;
-  result.odometry = st.odometry.trajectory();
+  result.odometry = st.split ? st.split_odometry : st.odometry.trajectory();
   result.loops = st.loops;
   result.timings = st.timings;
   result.scans_processed = st.processed;

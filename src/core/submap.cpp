@@ -1,5 +1,7 @@
 #include "multisession_mapper/core/submap.h"
 
+#include <algorithm>
+
 namespace multisession_mapper {
 namespace core {
 
@@ -11,6 +13,25 @@ const char* SubmapStateName(SubmapState state) {
       return "fused";
   }
   return "unknown";
+}
+
+void AppendScanPoses(const Submap& submap, Trajectory* out) {
+  for (const SubmapScanRecord& scan : submap.scans) {
+    StampedPose sp;
+    sp.stamp_s = scan.stamp_s;
+    sp.pose = submap.T_map_submap * scan.T_submap_sensor;
+    out->push_back(sp);
+  }
+}
+
+void SortTrajectory(Trajectory* trajectory) {
+  std::stable_sort(trajectory->begin(), trajectory->end(),
+                   [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
+  trajectory->erase(std::unique(trajectory->begin(), trajectory->end(),
+                                [](const StampedPose& a, const StampedPose& b) {
+                                  return a.stamp_s == b.stamp_s;
+                                }),
+                    trajectory->end());
 }
 
 }  // namespace core

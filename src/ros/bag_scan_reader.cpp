@@ -17,6 +17,8 @@ struct BagScanReader::Impl {
   rosbag::Bag bag;
   std::size_t messages = 0;
   double duration_s = 0.0;
+  bool has_frame = false;
+  std::string frame_id;  // of the first convertible scan
 };
 
 BagScanReader::BagScanReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -59,6 +61,7 @@ core::StatusOr<BagScanReader> BagScanReader::Open(const std::string& bag_path,
 
 std::size_t BagScanReader::num_messages() const { return impl_->messages; }
 double BagScanReader::duration_s() const { return impl_->duration_s; }
+const std::string& BagScanReader::frame_id() const { return impl_->frame_id; }
 
 core::Status BagScanReader::ForEach(
     const std::function<bool(const core::StatusOr<core::LidarScan>&, std::size_t)>& on_scan) {
@@ -71,6 +74,18 @@ core::Status BagScanReader::ForEach(
           msg ? FromPointCloud2(*msg)
               : core::StatusOr<core::LidarScan>(
                     core::Status::Error("message is not a sensor_msgs/PointCloud2"));
+      if (scan.ok()) {
+        // The first convertible scan fixes the sensor frame; a scan in another frame would be
+        // placed as if it were in it (there is no tf offline), so it is refused.
+        if (!impl_->has_frame) {
+          impl_->frame_id = msg->header.frame_id;
+          impl_->has_frame = true;
+        } else if (msg->header.frame_id != impl_->frame_id) {
+          scan = core::Status::Error("frame_id '" + msg->header.frame_id +
+                                     "' differs from the sensor frame '" + impl_->frame_id +
+                                     "' of the session's first scan");
+        }
+      }
       if (!on_scan(scan, index++)) break;
     }
   } catch (const std::exception& e) {

@@ -294,5 +294,30 @@ ros::Time ToRosTime(double stamp_s) {
 
 double ToSeconds(const ros::Time& stamp) { return stamp.toSec(); }
 
+std::uint8_t ToLoopStatusMsg(core::LoopStatus status) {
+  switch (status) {
+    case core::LoopStatus::kCandidate: return multisession_mapper::LoopCandidate::CANDIDATE;
+    case core::LoopStatus::kAccepted: return multisession_mapper::LoopCandidate::ACCEPTED;
+    case core::LoopStatus::kRejected: return multisession_mapper::LoopCandidate::REJECTED;
+    case core::LoopStatus::kUndefined: break;
+  }
+  return multisession_mapper::LoopCandidate::UNDEFINED;
+}
+
+multisession_mapper::LoopCandidate ToLoopCandidateMsg(const core::LoopRecord& record) {
+  auto finite_or_zero = [](double v) { return std::isfinite(v) ? static_cast<float>(v) : 0.0f; };
+  multisession_mapper::LoopCandidate msg;
+  msg.current_session = record.current_session;
+  msg.current_submap = record.current_submap;
+  msg.history_session = record.history_session;
+  msg.history_submap = record.history_submap >= 0 ? static_cast<std::uint32_t>(record.history_submap) : 0u;
+  msg.status = ToLoopStatusMsg(record.status);
+  msg.vote_proportion = finite_or_zero(record.vote_proportion);
+  msg.overlap_ratio = finite_or_zero(record.overlap_ratio);
+  msg.relative_pose = ToPoseMsg(record.has_pose ? record.T_history_current : core::Pose3::Identity());
+  msg.reason = record.reason;
+  return msg;
+}
+
 }  // namespace conversions
 }  // namespace multisession_mapper

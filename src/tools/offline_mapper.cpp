@@ -1,7 +1,10 @@
 // offline_mapper: maps recording sessions from bags into a map directory, as fast as the
 // machine allows (no roscore, no playback). Thin: reads the bag through the conversions layer,
-// drives the core SessionMapper, hands the result to the map update and saves atomically.
+// drives the core SessionMapper and PlaceRecognizer, merges the session into the map with the
+// core SessionMerger and saves atomically. Several bags are merged one after the other.
 //   offline_mapper --bag day1.bag [--bag day2.bag ...] --map campus_map/ [options]
+// Exit codes: 0 merged, 1 error (input, map or configuration), 2 usage, 3 the session could not
+// be merged (e.g. no consistent overlap with the map); on any error the map is unchanged.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -9,12 +12,13 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "multisession_mapper/core/map_store.h"
-#include "multisession_mapper/core/map_update.h"
+#include "multisession_mapper/core/session_merger.h"
 #include "multisession_mapper/core/pipeline_config.h"
 #include "multisession_mapper/core/place_recognizer.h"
 #include "multisession_mapper/core/session_mapper.h"
@@ -29,7 +33,7 @@ namespace {
 
 const char kUsage[] =
     "usage: offline_mapper --bag FILE [--bag FILE ...] --map DIR [options]\n"
-    "  --bag FILE        a session's bag; several are mapped one after the other\n"
+    "  --bag FILE        a session's bag; several are merged one after the other\n"
     "  --map DIR         map directory (created when absent; updated atomically)\n"
     "  --topic NAME      PointCloud2 topic (/velodyne_points)\n"
     "  --config FILE     pipeline configuration YAML (defaults: cfg/default.yaml)\n"
@@ -65,7 +69,42 @@ std::string UtcNow() {
   return buffer;
 }
 
-// Maps one bag into the map directory; returns the process exit code.
+// The map's descriptor database, or null for a map without sessions.
+core::StatusOr<std::shared_ptr<const core::DescriptorDatabase>> LoadHistoryDatabase(
+    const std::string& map_dir, const core::MapContents& map, const core::PipelineConfig& config) {
+  if (map.sessions.empty()) return std::shared_ptr<const core::DescriptorDatabase>();
+  const std::string path = map_dir + "/database/descriptors.bin";
+  core::StatusOr<core::DescriptorDatabase> db =
+      core::DescriptorDatabase::Load(path, config.place_recognition.database);
+  if (!db.ok()) return db.status();
+  return std::shared_ptr<const core::DescriptorDatabase>(
+      std::make_shared<core::DescriptorDatabase>(std::move(db.value())));
+}
+
+void PrintMergeReport(const core::MergeReport& report) {
+  if (report.first_session) {
+    std::fprintf(stderr, "%s: first session of the map (defines the map frame)\n",
+                 report.session.c_str());
+    return;
+  }
+  std::size_t matched = 0, undefined = 0;
+  for (const core::SubmapVoteResult& vote : report.matching.votes) {
+    (vote.outcome == core::SubmapVoteResult::Outcome::kUndefined ? undefined : matched) += 1;
+  }
+  const core::TimingSummary pairs = core::Summarize(report.dynamic_pair_s);
+  std::fprintf(stderr,
+               "%s merged: %zu submaps voted to a candidate, %zu undefined; %zu inter-session "
+               "loops + %zu proximity loops; %zu submaps added, %zu fused; %zu dynamic points "
+               "removed, %zu mended, %zu fused points added; matching %.1f s, optimisation %.1f s, "
+               "dynamics %.2f s/pair median, update %.1f s\n",
+               report.session.c_str(), matched, undefined, report.inter_loops,
+               report.proximity_loops, report.submaps_added, report.submaps_fused,
+               report.points_removed, report.points_mended, report.points_fused,
+               report.matching_s, report.optimisation_s, pairs.median, report.update_s);
+}
+
+// Maps one bag and adds it to the map directory (first session or merge); returns the exit
+// code. On any error the map directory is left as it was.
 int MapSession(const Options& options, const std::string& bag_path, const std::string& name,
                const core::PipelineConfig& config) {
   const auto start = std::chrono::steady_clock::now();
@@ -93,26 +132,23 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
         return 1;
       }
     }
-    if (!map.sessions.empty()) {
-      std::fprintf(stderr,
-                   "offline_mapper: '%s' holds %zu session(s); merging a further session into a "
-                   "map (inter-session loops, joint optimisation, dynamic removal) is not "
-                   "implemented in this version. The map was not changed.\n",
-                   options.map_dir.c_str(), map.sessions.size());
-      return 3;
-    }
   }
-
+  core::StatusOr<std::shared_ptr<const core::DescriptorDatabase>> history =
+      LoadHistoryDatabase(options.map_dir, map, config);
+  if (!history.ok()) {
+    std::fprintf(stderr, "offline_mapper: cannot load the map's place database: %s\n",
+                 history.status().message().c_str());
+    return 1;
+  }
+  core::StatusOr<core::SessionMerger> merger = core::SessionMerger::Create(config.merge);
   core::StatusOr<core::SessionMapper> mapper = core::SessionMapper::Create(config.session, name);
-  if (!mapper.ok()) {
-    std::fprintf(stderr, "offline_mapper: %s\n", mapper.status().message().c_str());
-    return 1;
-  }
   core::StatusOr<core::PlaceRecognizer> recognizer =
-      core::PlaceRecognizer::Create(config.place_recognition, name, nullptr);
-  if (!recognizer.ok()) {
-    std::fprintf(stderr, "offline_mapper: %s\n", recognizer.status().message().c_str());
-    return 1;
+      core::PlaceRecognizer::Create(config.place_recognition, name, history.value());
+  for (const core::Status& s : {merger.status(), mapper.status(), recognizer.status()}) {
+    if (!s.ok()) {
+      std::fprintf(stderr, "offline_mapper: %s\n", s.message().c_str());
+      return 1;
+    }
   }
   const std::size_t total = options.max_scans > 0
                                 ? std::min<std::size_t>(options.max_scans, reader.value().num_messages())
@@ -157,22 +193,14 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   result.value().timings.query_ms = recognizer.value().query_ms();
   core::SessionFiles files;
   files.place_recognition_csv = recognizer.value().QueriesCsv();
-  core::Status added = core::AddFirstSession(result.value(), record, files, &map);
-  if (!added.ok()) {
-    std::fprintf(stderr, "offline_mapper: %s\n", added.message().c_str());
-    return 1;
+  if (!options.quiet) std::fprintf(stderr, "%s: merging into the map ...\n", name.c_str());
+  core::StatusOr<core::MergeReport> merged =
+      merger.value().Merge(result.value(), record, recognizer.value(), files, &map);
+  if (!merged.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s\n", merged.status().message().c_str());
+    return 3;
   }
   map.parameters_yaml = core::PipelineConfigToYaml(config);
-  core::StatusOr<core::DescriptorDatabase> database = recognizer.value().NewDatabase();
-  core::Status db_status = database.ok() ? recognizer.value().AppendTo(&database.value())
-                                         : database.status();
-  std::ostringstream database_bytes;
-  if (db_status.ok()) db_status = database.value().Write(database_bytes);
-  if (!db_status.ok()) {
-    std::fprintf(stderr, "offline_mapper: place database: %s\n", db_status.message().c_str());
-    return 1;
-  }
-  map.files["database/descriptors.bin"] = database_bytes.str();
   core::SessionRunInfo run;
   run.bag_duration_s = record.duration_s;
   run.merge_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - merge_start).count();
@@ -184,6 +212,7 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     std::fprintf(stderr, "offline_mapper: saving failed: %s\n", saved.message().c_str());
     return 1;
   }
+  PrintMergeReport(merged.value());
   int accepted = 0;
   for (const core::LoopRecord& loop : result.value().loops) {
     accepted += loop.status == core::LoopStatus::kAccepted;
@@ -191,9 +220,9 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   const core::TimingSummary odom = core::Summarize(result.value().timings.odometry_ms);
   std::fprintf(stderr,
                "%s: %zu scans (%zu skipped), %zu submaps, %d intra-session loops accepted, "
-               "odometry %.1f ms/scan median, %.1f x real time, peak %.0f MB -> %s\n",
+               "odometry %.1f ms/scan median, merge %.1f s, %.1f x real time, peak %.0f MB -> %s\n",
                name.c_str(), result.value().scans_processed, result.value().scans_skipped,
-               result.value().submaps.size(), accepted, odom.median,
+               result.value().submaps.size(), accepted, odom.median, run.merge_s,
                run.wall_time_s > 0 ? run.bag_duration_s / run.wall_time_s : 0.0, run.peak_rss_mb,
                options.map_dir.c_str());
   return 0;

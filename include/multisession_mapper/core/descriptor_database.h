@@ -125,6 +125,11 @@ class DescriptorDatabase {
   /// Reads a database written by Save(); `config` supplies the query parameters.
   static StatusOr<DescriptorDatabase> Load(const std::string& path,
                                            const DescriptorDatabaseConfig& config);
+  /// Reads `size` bytes written by Write() from `in` (e.g. a map file held in memory);
+  /// `source` names it in errors.
+  static StatusOr<DescriptorDatabase> Read(std::istream& in, std::uint64_t size,
+                                           const std::string& source,
+                                           const DescriptorDatabaseConfig& config);
 
   DescriptorDatabase(DescriptorDatabase&&) noexcept;
   DescriptorDatabase& operator=(DescriptorDatabase&&) noexcept;

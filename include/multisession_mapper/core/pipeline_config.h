@@ -8,6 +8,7 @@
 
 #include "multisession_mapper/core/place_recognizer.h"
 #include "multisession_mapper/core/session_mapper.h"
+#include "multisession_mapper/core/session_merger.h"
 #include "multisession_mapper/core/status.h"
 
 namespace multisession_mapper {
@@ -16,10 +17,12 @@ namespace core {
 struct PipelineConfig {
   SessionMapperConfig session;
   PlaceRecognizerConfig place_recognition;
+  SessionMergerConfig merge;
 
   Status Validate() const {
     Status s = session.Validate();
-    return s.ok() ? place_recognition.Validate() : s;
+    if (s.ok()) s = place_recognition.Validate();
+    return s.ok() ? merge.Validate() : s;
   }
 };
 

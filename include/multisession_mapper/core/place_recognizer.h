@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -56,6 +57,11 @@ class PlaceRecognizer {
   /// Inserts this session's scans (descriptor, session, stamp, submap id) into `database`:
   /// the map's database when merging, or a new one (NewDatabase) for the first session.
   Status AppendTo(DescriptorDatabase* database) const;
+  /// As above, leaving out the scans of `skip_submaps` (submaps fused into history submaps:
+  /// the history's descriptors already describe their place).
+  Status AppendTo(DescriptorDatabase* database, const std::set<std::uint32_t>& skip_submaps) const;
+  /// The history database queried (null for the first session).
+  const std::shared_ptr<const DescriptorDatabase>& history() const { return history_; }
   /// An empty database of the configured descriptor kind.
   StatusOr<DescriptorDatabase> NewDatabase() const;
 

@@ -94,6 +94,36 @@ class SessionMapper {
   /// Closes the open submaps, runs their loop search and the final optimisation.
   StatusOr<SessionResult> Finish();
 
+  // --- Split path for the nodelets (issue 8): odometry runs elsewhere (ScanMatchingNodelet);
+  // --- this object builds the submaps, loops and pose graph from the registered scans.
+
+  /// Processes a scan that an Odometry outside this object has already registered (its
+  /// de-skewed scan and pose T_odom_sensor). Equivalent to the part of AddScan after the
+  /// odometry: the same submaps, loops and graph result from the same OdometryResults. Fails
+  /// (and changes nothing) when the stamp does not increase. Do not mix with AddScan in one
+  /// session.
+  Status AddRegisteredScan(const OdometryResult& registered);
+
+  /// Applies `config` from the next scan / finished submap on (live tuning). Everything but
+  /// `odometry` applies (submap builder, in-session dynamics, intra-session loops, pose graph,
+  /// odometry edge sigmas); the odometry of AddScan keeps its creation config (the nodelets
+  /// run their own Odometry). Refuses an invalid config and keeps the old one.
+  Status UpdateConfig(const SessionMapperConfig& config);
+  const SessionMapperConfig& config() const;
+
+  /// Current (optimised) origin of finished submap `id`, T_session_submap.
+  Pose3 SubmapOrigin(std::uint32_t id) const;
+  /// Finished submap `id` (points and scan poses in its own frame; its T_map_submap is the
+  /// estimate when it finished: use SubmapOrigin for the current one). id < num_finished_submaps().
+  const Submap& finished_submap(std::uint32_t id) const;
+  /// T_session_odom: moves odometry-frame poses onto the optimised graph (identity before the
+  /// first finished submap); the map -> odom transform of REP-105.
+  Pose3 SessionFromOdometry() const;
+  /// Intra-session loop records so far.
+  const LoopRecords& loops() const;
+  /// Pose graph solves so far (changes when submap origins moved).
+  std::size_t num_optimisations() const;
+
  private:
   struct State;
   explicit SessionMapper(std::unique_ptr<State> state);

@@ -35,10 +35,11 @@ class Status {
 template <typename T>
 class StatusOr {
  public:
-  StatusOr(T value) : value_(std::move(value)) {}  // NOLINT(runtime/explicit): like absl
+  StatusOr(T value) : value_(std::move(value)), status_(Status::Ok()) {}  // NOLINT: like absl
   StatusOr(Status status) : status_(std::move(status)) {}  // NOLINT(runtime/explicit)
 
   bool ok() const { return value_.has_value(); }
+  /// Ok when a value is held.
   const Status& status() const { return status_; }
   const T& value() const& { return *value_; }
   T& value() & { return *value_; }

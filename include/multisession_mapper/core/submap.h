@@ -41,5 +41,10 @@ struct Submap {
 
 const char* SubmapStateName(SubmapState state);
 
+/// Appends the sensor pose of every scan of `submap` (T_map_submap * T_submap_sensor).
+void AppendScanPoses(const Submap& submap, Trajectory* out);
+/// Sorts by stamp and keeps one pose per stamp (a scan can belong to two overlapping submaps).
+void SortTrajectory(Trajectory* trajectory);
+
 }  // namespace core
 }  // namespace multisession_mapper

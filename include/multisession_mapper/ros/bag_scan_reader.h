@@ -1,7 +1,9 @@
 // Reads LiDAR scans from a bag with the rosbag C++ API, as fast as the disk allows (no roscore,
 // no playback). Opening checks that the topic exists and carries sensor_msgs/PointCloud2, and
 // names the topics that do exist when it does not; a truncated or unreadable bag gives an error,
-// never a crash.
+// never a crash. The first convertible scan's frame_id is the sensor frame of the session: a
+// later scan in another frame is passed on as an error (skipped by the caller), since offline
+// there is no tf to bring it into the sensor frame.
 #pragma once
 
 #include <cstddef>
@@ -25,9 +27,12 @@ class BagScanReader {
   std::size_t num_messages() const;
   /// Time between the first and the last message on the topic [s].
   double duration_s() const;
+  /// Sensor frame: frame_id of the first convertible scan (empty before ForEach found one).
+  const std::string& frame_id() const;
 
   /// Calls `on_scan(scan_or_error, index)` for every message in bag time order; a message that
-  /// cannot be converted is passed as an error (the caller decides to skip it). Stops early
+  /// cannot be converted, or whose frame_id differs from the first scan's, is passed as an
+  /// error (the caller decides to skip it). Stops early
   /// when `on_scan` returns false. Fails when the bag cannot be read (e.g. truncated).
   core::Status ForEach(
       const std::function<bool(const core::StatusOr<core::LidarScan>&, std::size_t)>& on_scan);

@@ -6,9 +6,11 @@
 #include <string>
 
 #include <geometry_msgs/Pose.h>
+#include <multisession_mapper/LoopCandidate.h>
 #include <ros/time.h>
 #include <sensor_msgs/PointCloud2.h>
 
+#include "multisession_mapper/core/loop_record.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/types.h"
 
@@ -37,6 +39,12 @@ core::StatusOr<core::Pose3> FromPoseMsg(const geometry_msgs::Pose& msg);
 
 ros::Time ToRosTime(double stamp_s);
 double ToSeconds(const ros::Time& stamp);
+
+/// LoopCandidate::CANDIDATE / ACCEPTED / REJECTED / UNDEFINED.
+std::uint8_t ToLoopStatusMsg(core::LoopStatus status);
+/// A loop record as a message; non-finite vote / overlap values become 0, a record without
+/// pose gets the identity, a negative history submap (undefined) gets 0.
+multisession_mapper::LoopCandidate ToLoopCandidateMsg(const core::LoopRecord& record);
 
 }  // namespace conversions
 }  // namespace multisession_mapper

@@ -1,0 +1,124 @@
+// Low-dynamic detection between two overlapping submaps of different sessions (reference
+// paper, section VI-B; issue 7): objects present in one session and absent in the other
+// (parked cars that left, bins, construction fences), found in sparse LiDAR submaps.
+//
+//  1. The history submap is moved into the current submap's frame.
+//  2. Seeds: point pairs closer than d_beta (kd-tree); region growing from the seeds in each
+//     submap (point distance and normal difference) gives the common parts; the rest of each
+//     submap is its difference set.
+//  3. A voxel map of each difference set; ray casting from each submap's sensor origins (the
+//     scan poses recorded in the submap) keeps only occupied voxels in front of the rays; the
+//     remaining occupied voxels of one set are ray-cast through the other session's free space
+//     to find coarse dynamic points (something stood where the other session saw through).
+//  4. Region growing turns the coarse dynamic points into the final dynamic points; a height
+//     guard (points higher than `height_guard_m` above the local ground are never dynamic) can
+//     be switched off.
+//  5. Mending: points of the current difference set that are not dynamic and were hidden in
+//     the history session (behind what was removed) are returned for adding to the history.
+//
+// How the sparse submaps are handled (the submaps keep one point per 0.2 m voxel and only the
+// sensor origins of their scans, not which scan saw which point):
+//  - A ray goes from each point to its `rays_per_point` nearest sensor origins (origins thinned
+//    to one per `origin_spacing_m`). A ray that meets an occupied voxel of its own session
+//    before its end did not see its end point from there and is dropped ("only occupied voxels
+//    in front of the rays"). Free space ends `end_margin_m` before the end point (longer for
+//    rays that graze the ground) so that surface samples do not clear their neighbours.
+//  - Porous things (tree canopies, hedges, mesh fences) return different points every session:
+//    one session's rays pass where the other hit a leaf. A point only counts as a coarse
+//    dynamic point when the evidence is consistent: at least `min_passing_rays` rays of the
+//    other session pass through its voxel AND the other session has no point above the ground
+//    within `support_radius_m` of it (a removed car leaves empty air; a canopy does not). A
+//    detection must be a cluster of at least `min_cluster_points` points with at least
+//    `min_cluster_coarse_points` coarse points. So canopies stay static with the height guard
+//    off; the guard is kept as an extra safety for tall structures.
+//  - Local ground: the lowest point per `ground_cell_m` cell of both submaps, minimum over the
+//    3x3 cell neighbourhood. Points within `ground_tolerance_m` of it are ground: never dynamic
+//    (the ground under a removed car is seen by both sessions' rays at grazing angles) and no
+//    support.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/submap.h"
+#include "multisession_mapper/core/types.h"
+
+namespace multisession_mapper {
+namespace core {
+
+struct DynamicDetectionConfig {
+  /// Seed distance d_beta: a point with a point of the other submap this close is common [m].
+  double seed_distance_m = 0.15;
+  /// Region growing: neighbour radius [m] and largest normal difference [rad].
+  double grow_radius_m = 0.3;
+  double grow_max_normal_angle_rad = 0.35;
+  /// Normals for the region growing: one per cubic voxel of this edge, from the covariance of
+  /// the submap's points in it (planar voxels only) [m].
+  double normal_voxel_m = 0.6;
+  /// Voxel size of the difference-set voxel maps used for ray casting [m].
+  double voxel_size_m = 0.2;
+  /// Ray casting: sensor origins are thinned to one per this distance [m]; each point is
+  /// ray-cast from its this many nearest thinned origins within `max_ray_length_m` [m].
+  double origin_spacing_m = 2.0;
+  int rays_per_point = 2;
+  double max_ray_length_m = 40.0;
+  /// Free space ends this far before a ray's end point [m]; for end points on the ground it is
+  /// end_margin_m / sin(ray elevation), at most max_end_margin_m [m].
+  double end_margin_m = 0.3;
+  double max_end_margin_m = 2.0;
+  /// Consistent free-space evidence for a coarse dynamic point: this many passing rays of the
+  /// other session through its voxel, and at most `max_support_points` points of the other
+  /// session above the ground within `support_radius_m` [m].
+  int min_passing_rays = 2;
+  double support_radius_m = 0.4;
+  int max_support_points = 0;
+  /// Growing the coarse dynamic points into objects: neighbour radius [m]; a detection needs
+  /// this many points, of which this many coarse.
+  double dynamic_grow_radius_m = 0.45;
+  int min_cluster_points = 10;
+  int min_cluster_coarse_points = 3;
+  /// Local ground: cell edge [m]; points this close above the ground are ground [m].
+  double ground_cell_m = 1.0;
+  double ground_tolerance_m = 0.25;
+  /// Height guard: points higher than this above the local ground are never dynamic [m].
+  bool height_guard_enabled = true;
+  double height_guard_m = 2.0;
+  /// Mending: a current point with no history point this close, not dynamic and not seen
+  /// through by `min_passing_rays` history rays, is missing from the history [m].
+  double mending_distance_m = 0.3;
+
+  Status Validate() const;
+};
+
+struct DynamicDetectionResult {
+  std::vector<std::uint32_t> history_dynamic;  ///< indices into history.points
+  std::vector<std::uint32_t> current_dynamic;  ///< indices into current.points
+  /// Indices into current.points of static points hidden in the history session, to be added
+  /// to the history submap (in the current frame; move them with T_history_current).
+  /// Criterion: no history point within mending_distance_m, not current_dynamic, within
+  /// max_ray_length_m of a history sensor origin, and history's rays did not see through the
+  /// place (hidden behind removed objects or otherwise out of the history's view).
+  std::vector<std::uint32_t> current_mending;
+  double time_s = 0.0;
+};
+
+class DynamicDetector {
+ public:
+  static StatusOr<DynamicDetector> Create(const DynamicDetectionConfig& config);
+
+  /// `T_current_history` moves history-submap coordinates into the current submap frame.
+  /// Both submaps carry their scans' sensor origins (Submap::scans). An empty submap gives an
+  /// empty result; a non-empty submap without scan origins is an error (no free space known).
+  StatusOr<DynamicDetectionResult> Detect(const Submap& history, const Submap& current,
+                                          const Pose3& T_current_history) const;
+
+  const DynamicDetectionConfig& config() const { return config_; }
+
+ private:
+  explicit DynamicDetector(const DynamicDetectionConfig& config) : config_(config) {}
+  DynamicDetectionConfig config_;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,103 @@
+// Inter-session loop closure detection (reference paper, section V; issue 6): finds where a new
+// session overlaps the stored map without any initial guess.
+//
+// For each submap of the new session: the per-scan database answers (PlaceRecognizer) are voted
+// per submap (SubmapVoting); every candidate pair is registered without initial guess
+// (GlobalRegistration: coarse global alignment, then fine ICP and the overlap check of the
+// intra-session stage); finally the accepted pairs must agree with each other and with the new
+// session's odometry (sequence consistency): every accepted loop implies a transform
+// map <- session, and only the largest group of loops that imply the same transform (within
+// bounds) is kept, so that a single aliased place cannot pull a session in.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "multisession_mapper/core/global_registration.h"
+#include "multisession_mapper/core/loop_record.h"
+#include "multisession_mapper/core/map_store.h"
+#include "multisession_mapper/core/place_recognizer.h"
+#include "multisession_mapper/core/pose_graph.h"
+#include "multisession_mapper/core/session_mapper.h"
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/submap_voting.h"
+
+namespace multisession_mapper {
+namespace core {
+
+struct SequenceConsistencyConfig {
+  /// Two loops agree when the map <- session transforms they imply differ by less than
+  /// these [m], [rad] (translation measured at the current submap's origin).
+  double max_translation_m = 1.0;
+  double max_rotation_rad = 0.05;
+  /// The bounds grow with the distance between the two current submaps' origins (odometry
+  /// drift of both sessions between them) by these [m/m], [rad/m].
+  double max_translation_per_m = 0.01;
+  double max_rotation_per_m = 0.0002;
+  /// A session is pulled in only by a group of at least this many agreeing loops.
+  /// Grouping: for every registered loop, the loops that agree with it form its group; the
+  /// largest group wins (ties: larger summed overlap). T_map_session is taken from the loop of
+  /// the winning group with the largest overlap.
+  int min_group_size = 2;
+
+  Status Validate() const;
+};
+
+struct InterSessionMatcherConfig {
+  SubmapVotingConfig voting;
+  /// History submaps whose origins are this close are neighbours for the top-n vote [m].
+  double neighbour_distance_m = 30.0;
+  GlobalRegistrationConfig registration;
+  SequenceConsistencyConfig consistency;
+
+  Status Validate() const;
+};
+
+/// One validated inter-session loop closure: current submap <-> history submap.
+struct InterSessionLoop {
+  std::uint32_t current_submap = 0;      ///< id in the new session
+  std::size_t history_index = 0;         ///< index into MapContents::submaps
+  Pose3 T_history_current = Pose3::Identity();  ///< current submap frame -> history frame
+  Information6 information = Information6::Identity();
+  double vote_proportion = 0.0;
+  double overlap_ratio = 0.0;
+
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+struct InterSessionMatchResult {
+  /// Accepted loops (after registration and sequence consistency).
+  std::vector<InterSessionLoop, Eigen::aligned_allocator<InterSessionLoop>> loops;
+  /// Every candidate and undefined submap with its fate (kind kInter), for loops/<s>.csv.
+  LoopRecords records;
+  /// Per current submap: the vote (ordered like SessionResult::submaps).
+  std::vector<SubmapVoteResult> votes;
+  std::vector<double> registration_s;  ///< time per registered candidate pair [s]
+  /// Estimate of T_map_session from the accepted group (identity when no loop was accepted).
+  Pose3 T_map_session = Pose3::Identity();
+  bool aligned = false;  ///< at least one consistent group was accepted
+
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+class InterSessionMatcher {
+ public:
+  static StatusOr<InterSessionMatcher> Create(const InterSessionMatcherConfig& config);
+
+  /// `history` is the stored map (submaps with map-frame origins); `current` the new session
+  /// (submaps in the session frame); `recognizer` holds the per-scan queries of `current`
+  /// against the map's descriptor database.
+  StatusOr<InterSessionMatchResult> Match(const MapContents& history,
+                                          const SessionResult& current,
+                                          const PlaceRecognizer& recognizer) const;
+
+  const InterSessionMatcherConfig& config() const { return config_; }
+
+ private:
+  explicit InterSessionMatcher(const InterSessionMatcherConfig& config) : config_(config) {}
+  InterSessionMatcherConfig config_;
+};
+
+}  // namespace core
+}  // namespace multisession_mapper

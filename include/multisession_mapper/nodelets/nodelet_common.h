@@ -1,0 +1,43 @@
+// Parameter helpers shared by the four nodelets (no algorithm here).
+// Parameters common to all nodelets (config, session, map_dir, frames, base_to_sensor) are set
+// once in the launch file's namespace and found with searchParam from each private namespace.
+#pragma once
+
+#include <string>
+
+#include <ros/node_handle.h>
+
+#include "multisession_mapper/core/pipeline_config.h"
+#include "multisession_mapper/core/types.h"
+
+namespace multisession_mapper {
+namespace nodelets {
+
+/// `name` from the private namespace or the nearest enclosing one; `fallback` when absent.
+std::string SearchString(const ros::NodeHandle& pnh, const std::string& name,
+                         const std::string& fallback);
+double SearchDouble(const ros::NodeHandle& pnh, const std::string& name, double fallback);
+
+/// The pipeline configuration from the YAML file named by the `config` parameter (defaults
+/// when the parameter is empty). Logs and returns false on a bad file.
+bool LoadConfigParam(const ros::NodeHandle& pnh, core::PipelineConfig* config,
+                     std::string* path);
+
+/// T_base_sensor from the `base_to_sensor` parameter [x y z roll pitch yaw] (m, rad);
+/// identity when absent. Logs and returns false on a malformed value.
+bool BaseToSensorParam(const ros::NodeHandle& pnh, core::Pose3* T_base_sensor);
+
+/// Name of the index-th session of this run: the `session` parameter (default: wall-clock time
+/// "session_YYYYmmdd_HHMMSS"), with "_<index+1>" appended from the second session on.
+std::string SessionName(const std::string& base, int index);
+
+/// Frame names: map, odom, base (REP-105).
+struct Frames {
+  std::string map = "map";
+  std::string odom = "odom";
+  std::string base = "base_link";
+};
+Frames FramesParam(const ros::NodeHandle& pnh);
+
+}  // namespace nodelets
+}  // namespace multisession_mapper

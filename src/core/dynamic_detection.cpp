@@ -1,0 +1,542 @@
+#include "multisession_mapper/core/dynamic_detection.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <deque>
+#include <limits>
+#include <memory>
+#include <string>
+#include <utility>
+
+#include "multisession_mapper/core/local_plane.h"
+#include "multisession_mapper/core/point_index.h"
+#include "multisession_mapper/core/ray_voxel_grid.h"
+#include "multisession_mapper/core/voxel_key.h"
+
+namespace multisession_mapper {
+namespace core {
+
+namespace {
+
+constexpr int kHistory = 0;
+constexpr int kCurrent = 1;
+// Voxel flags: occupied by a session's points; queried for the other session's passing rays.
+constexpr std::uint8_t kOccupied[2] = {1, 2};
+constexpr std::uint8_t kQueried[2] = {4, 8};
+
+Status CheckPositive(const std::string& name, double value) {
+  if (!std::isfinite(value) || value <= 0.0) {
+    return Status::Error("dynamic_detection." + name + " must be > 0, got " +
+                         std::to_string(value));
+  }
+  return Status::Ok();
+}
+
+// One submap of the pair in the current frame with everything derived from it.
+struct Side {
+  PointVector points;
+  PointVector origins;  // thinned sensor origins
+  std::vector<std::uint8_t> common;
+  std::vector<float> nearest_other_m;  // distance to the nearest point of the other submap
+  std::vector<float> height_m;         // above the local ground
+  // Lazily computed normals: 0 unknown, 1 planar, 2 none.
+  std::vector<std::uint8_t> normal_state;
+  std::vector<Eigen::Vector3f> normals;
+};
+
+PointVector ThinOrigins(const Submap& submap, const Pose3& T, double spacing_m) {
+  PointVector kept;
+  for (const SubmapScanRecord& scan : submap.scans) {
+    const Eigen::Vector3d o = T * scan.T_submap_sensor.translation();
+    bool close = false;
+    for (const Eigen::Vector3d& k : kept) {
+      if ((k - o).squaredNorm() < spacing_m * spacing_m) {
+        close = true;
+        break;
+      }
+    }
+    if (!close) kept.push_back(o);
+  }
+  return kept;
+}
+
+// Lowest point per 2D cell of both submaps, then the minimum over the 3x3 neighbourhood.
+class GroundGrid {
+ public:
+  GroundGrid(const Side& a, const Side& b, double cell_m) : cell_m_(cell_m) {
+    Eigen::Vector2d lo(std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
+    Eigen::Vector2d hi = -lo;
+    for (const Side* s : {&a, &b}) {
+      for (const Eigen::Vector3d& p : s->points) {
+        lo = lo.cwiseMin(p.head<2>());
+        hi = hi.cwiseMax(p.head<2>());
+      }
+    }
+    origin_ = lo;
+    nx_ = static_cast<int>(std::floor((hi.x() - lo.x()) / cell_m)) + 1;
+    ny_ = static_cast<int>(std::floor((hi.y() - lo.y()) / cell_m)) + 1;
+    std::vector<float> lowest(static_cast<std::size_t>(nx_) * ny_,
+                              std::numeric_limits<float>::infinity());
+    for (const Side* s : {&a, &b}) {
+      for (const Eigen::Vector3d& p : s->points) {
+        float& z = lowest[Cell(p)];
+        z = std::min(z, static_cast<float>(p.z()));
+      }
+    }
+    ground_.assign(lowest.size(), std::numeric_limits<float>::infinity());
+    for (int y = 0; y < ny_; ++y) {
+      for (int x = 0; x < nx_; ++x) {
+        float g = std::numeric_limits<float>::infinity();
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int cx = x + dx, cy = y + dy;
+            if (cx < 0 || cy < 0 || cx >= nx_ || cy >= ny_) continue;
+            g = std::min(g, lowest[static_cast<std::size_t>(cy) * nx_ + cx]);
+          }
+        }
+        ground_[static_cast<std::size_t>(y) * nx_ + x] = g;
+      }
+    }
+  }
+  float HeightAbove(const Eigen::Vector3d& p) const {
+    return static_cast<float>(p.z()) - ground_[Cell(p)];
+  }
+
+ private:
+  std::size_t Cell(const Eigen::Vector3d& p) const {
+    const int x = std::min(std::max(static_cast<int>((p.x() - origin_.x()) / cell_m_), 0), nx_ - 1);
+    const int y = std::min(std::max(static_cast<int>((p.y() - origin_.y()) / cell_m_), 0), ny_ - 1);
+    return static_cast<std::size_t>(y) * nx_ + x;
+  }
+  double cell_m_;
+  Eigen::Vector2d origin_;
+  int nx_ = 1, ny_ = 1;
+  std::vector<float> ground_;
+};
+
+class PairDetection {
+ public:
+  PairDetection(const DynamicDetectionConfig& config, Side* sides, const PointIndex* indices)
+      : config_(config), sides_(sides), indices_(indices) {}
+
+  // Steps 1-2: seeds and region growing of the common parts.
+  void FindCommonParts() {
+    for (int s = 0; s < 2; ++s) {
+      Side& side = sides_[s];
+      const PointIndex& other = indices_[1 - s];
+      const std::size_t n = side.points.size();
+      side.common.assign(n, 0);
+      side.nearest_other_m.assign(n, std::numeric_limits<float>::infinity());
+      side.normal_state.assign(n, 0);
+      side.normals.assign(n, Eigen::Vector3f::Zero());
+      // Distances beyond this are only compared against smaller thresholds: stay "far".
+      const double reach = std::max(config_.seed_distance_m, config_.mending_distance_m);
+      for (std::size_t i = 0; i < n; ++i) {
+        std::uint32_t j = 0;
+        double d2 = 0.0;
+        if (other.NearestWithin(side.points[i], reach, &j, &d2)) {
+          side.nearest_other_m[i] = static_cast<float>(std::sqrt(d2));
+          side.common[i] = d2 <= config_.seed_distance_m * config_.seed_distance_m ? 1 : 0;
+        }
+      }
+      GrowCommon(s);
+    }
+  }
+
+  void EstimateGround() {
+    const GroundGrid ground(sides_[0], sides_[1], config_.ground_cell_m);
+    for (int s = 0; s < 2; ++s) {
+      Side& side = sides_[s];
+      side.height_m.resize(side.points.size());
+      for (std::size_t i = 0; i < side.points.size(); ++i) {
+        side.height_m[i] = ground.HeightAbove(side.points[i]);
+      }
+    }
+  }
+
+  // Step 3: voxel maps and free-space ray casting of both sessions.
+  Status CastRays() {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+    Eigen::Vector3d hi = -lo;
+    for (int s = 0; s < 2; ++s) {
+      for (const PointVector* v : {&sides_[s].points, &sides_[s].origins}) {
+        for (const Eigen::Vector3d& p : *v) {
+          lo = lo.cwiseMin(p);
+          hi = hi.cwiseMax(p);
+        }
+      }
+    }
+    const Eigen::Vector3d pad = Eigen::Vector3d::Constant(config_.voxel_size_m);
+    StatusOr<RayVoxelGrid> grid = RayVoxelGrid::Create(config_.voxel_size_m, lo - pad, hi + pad);
+    if (!grid.ok()) return grid.status();
+    grid_ = std::make_unique<RayVoxelGrid>(std::move(grid.value()));
+    // Coarse mask (one cell per 8^3 voxels) of where queried voxels are: a ray that crosses
+    // none of them cannot add evidence and is not traversed voxel by voxel.
+    StatusOr<RayVoxelGrid> coarse =
+        RayVoxelGrid::Create(8.0 * config_.voxel_size_m, lo - pad, hi + pad);
+    if (!coarse.ok()) return coarse.status();
+    coarse_ = std::make_unique<RayVoxelGrid>(std::move(coarse.value()));
+    for (int s = 0; s < 2; ++s) {
+      const Side& side = sides_[s];
+      for (std::size_t i = 0; i < side.points.size(); ++i) {
+        RayVoxelGrid::Cell* cell = grid_->Touch(grid_->KeyOf(side.points[i]));
+        cell->flags |= kOccupied[s];
+        // Passing rays are counted where the other session may have something the voxel's
+        // own session did not see: the difference set and points without a close partner,
+        // above the ground (rays cannot see through the ground; mending needs no count there).
+        if (side.height_m[i] >= config_.ground_tolerance_m &&
+            (!side.common[i] || side.nearest_other_m[i] > config_.mending_distance_m)) {
+          cell->flags |= kQueried[s];
+          coarse_->Touch(coarse_->KeyOf(side.points[i]))->flags |= kQueried[s];
+        }
+      }
+    }
+    for (int s = 0; s < 2; ++s) CastSide(s);
+    return Status::Ok();
+  }
+
+  // Step 4: coarse dynamic points of side `s` (seen through by the other), grown into objects.
+  std::vector<std::uint32_t> DetectDynamic(int s) {
+    const Side& side = sides_[s];
+    const int other = 1 - s;
+    const std::size_t n = side.points.size();
+    // 0: not eligible, 1: eligible, 2: coarse dynamic.
+    std::vector<std::uint8_t> state(n, 0);
+    std::vector<std::uint32_t> neighbours;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (side.common[i] || side.height_m[i] < config_.ground_tolerance_m) continue;
+      if (config_.height_guard_enabled && side.height_m[i] > config_.height_guard_m) continue;
+      // Consistency: the other session has nothing above the ground around the point.
+      indices_[other].Radius(side.points[i], config_.support_radius_m, &neighbours);
+      int support = 0;
+      for (std::uint32_t j : neighbours) {
+        if (sides_[other].height_m[j] >= config_.ground_tolerance_m) ++support;
+      }
+      if (support > config_.max_support_points) continue;
+      state[i] = 1;
+      const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(side.points[i]));
+      if (cell != nullptr && cell->count[other] >= config_.min_passing_rays) state[i] = 2;
+    }
+    // Grow clusters from the coarse points over eligible points.
+    std::vector<std::uint8_t> visited(n, 0);
+    std::vector<std::uint32_t> dynamic, cluster;
+    std::deque<std::uint32_t> queue;
+    for (std::size_t seed = 0; seed < n; ++seed) {
+      if (state[seed] != 2 || visited[seed]) continue;
+      cluster.clear();
+      int coarse = 0;
+      visited[seed] = 1;
+      queue.push_back(static_cast<std::uint32_t>(seed));
+      while (!queue.empty()) {
+        const std::uint32_t i = queue.front();
+        queue.pop_front();
+        cluster.push_back(i);
+        if (state[i] == 2) ++coarse;
+        indices_[s].Radius(side.points[i], config_.dynamic_grow_radius_m, &neighbours);
+        for (std::uint32_t j : neighbours) {
+          if (state[j] == 0 || visited[j]) continue;
+          visited[j] = 1;
+          queue.push_back(j);
+        }
+      }
+      if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
+          coarse >= config_.min_cluster_coarse_points) {
+        dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
+      }
+    }
+    std::sort(dynamic.begin(), dynamic.end());
+    return dynamic;
+  }
+
+  // Step 5: current points missing from the history and not seen through by it.
+  std::vector<std::uint32_t> Mending(const std::vector<std::uint32_t>& current_dynamic) const {
+    const Side& side = sides_[kCurrent];
+    std::vector<std::uint8_t> dynamic(side.points.size(), 0);
+    for (std::uint32_t i : current_dynamic) dynamic[i] = 1;
+    std::vector<std::uint32_t> mending;
+    const double reach_sq = config_.max_ray_length_m * config_.max_ray_length_m;
+    for (std::size_t i = 0; i < side.points.size(); ++i) {
+      if (dynamic[i] || side.nearest_other_m[i] <= config_.mending_distance_m) continue;
+      // Only within the history's own reach: farther parts are the current session's news,
+      // not holes in the history submap.
+      bool in_reach = false;
+      for (const Eigen::Vector3d& o : sides_[kHistory].origins) {
+        if ((o - side.points[i]).squaredNorm() <= reach_sq) {
+          in_reach = true;
+          break;
+        }
+      }
+      if (!in_reach) continue;
+      const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(side.points[i]));
+      if (cell != nullptr && cell->count[kHistory] >= config_.min_passing_rays) continue;
+      mending.push_back(static_cast<std::uint32_t>(i));
+    }
+    return mending;
+  }
+
+ private:
+  // Normal of the point's voxel (edge normal_voxel_m) from all points of its submap in it:
+  // one covariance per voxel instead of a neighbour search per point. A voxel that holds
+  // foliage is not planar; a point farther than grow_radius_m / 3 from its voxel's plane
+  // (a car's side in a voxel dominated by the ground below it) gets no normal. Both stop the
+  // growth.
+  bool Normal(int s, std::uint32_t i, Eigen::Vector3f* normal) {
+    Side& side = sides_[s];
+    if (side.normal_state[i] == 0) {
+      VoxelMap<VoxelPlane>& planes = voxel_planes_[s];
+      if (planes.empty()) {
+        for (const Eigen::Vector3d& p : side.points) {
+          VoxelPlane& plane = planes[ToVoxelKey(p, config_.normal_voxel_m)];
+          plane.covariance.Add(p);
+          plane.sum += p;
+        }
+        for (auto& [key, plane] : planes) {
+          plane.planar = plane.covariance.Normal(plane_, &plane.normal);
+          plane.sum /= plane.covariance.count();
+        }
+      }
+      const VoxelPlane& plane = planes.at(ToVoxelKey(side.points[i], config_.normal_voxel_m));
+      if (plane.planar && std::abs(plane.normal.dot(side.points[i] - plane.sum)) <=
+                              config_.grow_radius_m / 3.0) {
+        side.normals[i] = plane.normal.cast<float>();
+        side.normal_state[i] = 1;
+      } else {
+        side.normal_state[i] = 2;
+      }
+    }
+    *normal = side.normals[i];
+    return side.normal_state[i] == 1;
+  }
+
+  bool Compatible(int s, std::uint32_t a, std::uint32_t b) {
+    Eigen::Vector3f na, nb;
+    // Never across the ground's rim: objects standing on the ground stay apart from it.
+    const float tol = static_cast<float>(config_.ground_tolerance_m);
+    if ((sides_[s].height_m[a] < tol) != (sides_[s].height_m[b] < tol)) return false;
+    if (!Normal(s, a, &na) || !Normal(s, b, &nb)) return false;
+    // Similar normals and the neighbour on the tangent plane (not a step up from the ground).
+    const Eigen::Vector3f d = (sides_[s].points[b] - sides_[s].points[a]).cast<float>();
+    const float off_plane = static_cast<float>(config_.grow_radius_m / 3.0);
+    return std::abs(na.dot(nb)) >= cos_max_angle_ && std::abs(na.dot(d)) <= off_plane &&
+           std::abs(nb.dot(d)) <= off_plane;
+  }
+
+  // Region growing from the seeds over points with compatible normals. Only points that are
+  // not seeds are searched from: their common neighbours start the growth.
+  void GrowCommon(int s) {
+    Side& side = sides_[s];
+    cos_max_angle_ = static_cast<float>(std::cos(config_.grow_max_normal_angle_rad));
+    std::vector<std::uint32_t> neighbours;
+    std::deque<std::uint32_t> queue;
+    for (std::size_t i = 0; i < side.points.size(); ++i) {
+      if (side.common[i]) continue;
+      indices_[s].Radius(side.points[i], config_.grow_radius_m, &neighbours);
+      for (std::uint32_t j : neighbours) {
+        if (side.common[j] == 1 && Compatible(s, static_cast<std::uint32_t>(i), j)) {
+          side.common[i] = 2;  // grown (2) rather than seed (1): no effect beyond bookkeeping
+          queue.push_back(static_cast<std::uint32_t>(i));
+          break;
+        }
+      }
+    }
+    while (!queue.empty()) {
+      const std::uint32_t i = queue.front();
+      queue.pop_front();
+      indices_[s].Radius(side.points[i], config_.grow_radius_m, &neighbours);
+      for (std::uint32_t j : neighbours) {
+        if (side.common[j] || !Compatible(s, i, j)) continue;
+        side.common[j] = 2;
+        queue.push_back(j);
+      }
+    }
+  }
+
+  // Rays from the thinned origins of side s to its points; counts the passes through voxels
+  // queried by the other side. A ray blocked by its own session's occupied voxel is dropped.
+  void CastSide(int s) {
+    const Side& side = sides_[s];
+    const std::uint8_t own = kOccupied[s];
+    const std::uint8_t query = kQueried[1 - s];
+    const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(config_.rays_per_point),
+                                                side.origins.size());
+    const double max_len_sq = config_.max_ray_length_m * config_.max_ray_length_m;
+    const double origin_clearance_m = config_.voxel_size_m;
+    std::vector<std::pair<double, std::uint32_t>> nearest;
+    std::vector<RayVoxelGrid::Cell*> passed;
+    for (std::size_t i = 0; i < side.points.size(); ++i) {
+      const Eigen::Vector3d& p = side.points[i];
+      nearest.clear();
+      for (std::size_t o = 0; o < side.origins.size(); ++o) {
+        const double d2 = (side.origins[o] - p).squaredNorm();
+        if (d2 <= max_len_sq) nearest.emplace_back(d2, static_cast<std::uint32_t>(o));
+      }
+      const std::size_t rays = std::min(k, nearest.size());
+      std::partial_sort(nearest.begin(), nearest.begin() + rays, nearest.end());
+      for (std::size_t r = 0; r < rays; ++r) {
+        const Eigen::Vector3d& o = side.origins[nearest[r].second];
+        const double length = std::sqrt(nearest[r].first);
+        double margin = config_.end_margin_m;
+        if (side.height_m[i] < config_.ground_tolerance_m && length > 0.0) {
+          const double sin_elevation = std::abs(o.z() - p.z()) / length;
+          margin = std::min(config_.max_end_margin_m,
+                            config_.end_margin_m / std::max(sin_elevation, 1e-3));
+        }
+        const double free_until = length - margin;
+        if (free_until <= origin_clearance_m) continue;
+        bool relevant = false;
+        coarse_->Traverse(o, p, [&](RayVoxelGrid::Cell* cell, double entry_m) {
+          if (entry_m >= free_until) return false;
+          relevant = cell != nullptr && (cell->flags & query);
+          return !relevant;
+        });
+        if (!relevant) continue;
+        passed.clear();
+        bool blocked = false;
+        grid_->Traverse(o, p, [&](RayVoxelGrid::Cell* cell, double entry_m) {
+          if (entry_m >= free_until) return false;
+          if (cell == nullptr) return true;
+          if ((cell->flags & own) && entry_m > origin_clearance_m) {
+            blocked = true;
+            return false;
+          }
+          if (cell->flags & query) passed.push_back(cell);
+          return true;
+        });
+        if (blocked) continue;
+        for (RayVoxelGrid::Cell* cell : passed) {
+          if (cell->count[s] < 255) ++cell->count[s];
+        }
+      }
+    }
+  }
+
+  const DynamicDetectionConfig& config_;
+  Side* sides_;
+  const PointIndex* indices_;
+  std::unique_ptr<RayVoxelGrid> grid_;
+  std::unique_ptr<RayVoxelGrid> coarse_;
+  LocalPlaneCriteria plane_;
+  float cos_max_angle_ = 1.0f;
+  struct VoxelPlane {
+    CovarianceAccumulator covariance;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // the centroid once finished
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    bool planar = false;
+  };
+  VoxelMap<VoxelPlane> voxel_planes_[2];
+};
+
+}  // namespace
+
+Status DynamicDetectionConfig::Validate() const {
+  for (const auto& [name, value] :
+       {std::pair<const char*, double>{"seed_distance_m", seed_distance_m},
+        {"grow_radius_m", grow_radius_m},
+        {"normal_voxel_m", normal_voxel_m},
+        {"voxel_size_m", voxel_size_m},
+        {"origin_spacing_m", origin_spacing_m},
+        {"max_ray_length_m", max_ray_length_m},
+        {"end_margin_m", end_margin_m},
+        {"max_end_margin_m", max_end_margin_m},
+        {"support_radius_m", support_radius_m},
+        {"dynamic_grow_radius_m", dynamic_grow_radius_m},
+        {"ground_cell_m", ground_cell_m},
+        {"height_guard_m", height_guard_m},
+        {"mending_distance_m", mending_distance_m}}) {
+    const Status status = CheckPositive(name, value);
+    if (!status.ok()) return status;
+  }
+  if (!std::isfinite(grow_max_normal_angle_rad) || grow_max_normal_angle_rad < 0.0 ||
+      grow_max_normal_angle_rad > M_PI / 2) {
+    return Status::Error("dynamic_detection.grow_max_normal_angle_rad must be in [0, pi/2]");
+  }
+  if (!std::isfinite(ground_tolerance_m) || ground_tolerance_m < 0.0) {
+    return Status::Error("dynamic_detection.ground_tolerance_m must be >= 0");
+  }
+  if (voxel_size_m < 0.01) {
+    return Status::Error("dynamic_detection.voxel_size_m must be >= 0.01 (memory), got " +
+                         std::to_string(voxel_size_m));
+  }
+  if (max_end_margin_m < end_margin_m) {
+    return Status::Error("dynamic_detection.max_end_margin_m must be >= end_margin_m");
+  }
+  if (rays_per_point < 1) return Status::Error("dynamic_detection.rays_per_point must be >= 1");
+  if (min_passing_rays < 1 || min_passing_rays > 255) {
+    return Status::Error("dynamic_detection.min_passing_rays must be in [1, 255]");
+  }
+  if (max_support_points < 0) {
+    return Status::Error("dynamic_detection.max_support_points must be >= 0");
+  }
+  if (min_cluster_points < 1 || min_cluster_coarse_points < 1 ||
+      min_cluster_coarse_points > min_cluster_points) {
+    return Status::Error(
+        "dynamic_detection: need 1 <= min_cluster_coarse_points <= min_cluster_points");
+  }
+  return Status::Ok();
+}
+
+StatusOr<DynamicDetector> DynamicDetector::Create(const DynamicDetectionConfig& config) {
+  const Status status = config.Validate();
+  if (!status.ok()) return status;
+  return DynamicDetector(config);
+}
+
+StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
+                                                         const Submap& current,
+                                                         const Pose3& T_current_history) const {
+  const auto start = std::chrono::steady_clock::now();
+  DynamicDetectionResult result;
+  if (history.points.empty() || current.points.empty()) return result;
+  if (history.scans.empty() || current.scans.empty()) {
+    return Status::Error("dynamic_detection: submap " +
+                         (history.scans.empty() ? history.session + "/" + std::to_string(history.id)
+                                                : current.session + "/" + std::to_string(current.id)) +
+                         " has no scan origins to ray-cast from");
+  }
+  Side sides[2];
+  sides[kHistory].points.reserve(history.points.size());
+  for (const Eigen::Vector3d& p : history.points) {
+    sides[kHistory].points.push_back(T_current_history * p);
+  }
+  sides[kCurrent].points = current.points;
+  sides[kHistory].origins = ThinOrigins(history, T_current_history, config_.origin_spacing_m);
+  sides[kCurrent].origins = ThinOrigins(current, Pose3::Identity(), config_.origin_spacing_m);
+
+  StatusOr<PointIndex> history_index = PointIndex::Create(sides[kHistory].points);
+  if (!history_index.ok()) return history_index.status();
+  StatusOr<PointIndex> current_index = PointIndex::Create(sides[kCurrent].points);
+  if (!current_index.ok()) return current_index.status();
+  const PointIndex indices[2] = {std::move(history_index.value()),
+                                 std::move(current_index.value())};
+
+#ifdef MSM_DYN_PROFILE
+  auto lap = [t = std::clock()](const char* what) mutable {
+    const std::clock_t now = std::clock();
+    std::fprintf(stderr, "  %s %.1f ms cpu\n", what, 1000.0 * (now - t) / CLOCKS_PER_SEC);
+    t = now;
+  };
+#else
+  auto lap = [](const char*) {};
+#endif
+  PairDetection pair(config_, sides, indices);
+  lap("index");
+  pair.EstimateGround();
+  pair.FindCommonParts();
+  lap("common");
+  const Status cast = pair.CastRays();
+  if (!cast.ok()) return cast;
+  lap("rays");
+  result.history_dynamic = pair.DetectDynamic(kHistory);
+  result.current_dynamic = pair.DetectDynamic(kCurrent);
+  lap("dynamic");
+  result.current_mending = pair.Mending(result.current_dynamic);
+  result.time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

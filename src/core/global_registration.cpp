@@ -1,0 +1,457 @@
+#include "multisession_mapper/core/global_registration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <pcl/features/fpfh.h>
+#include <pcl/features/normal_3d.h>
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include "multisession_mapper/core/icp_registration.h"
+#include "multisession_mapper/core/kdtree_target.h"
+#include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/voxel_downsample.h"
+
+namespace multisession_mapper {
+namespace core {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// The coarse cloud of one submap: downsampled, cropped, with PCL normals and FPFH features.
+struct CoarseCloud {
+  PointVector points;
+  std::vector<Eigen::Vector3d> normals;  // unit; zero when the normal is undefined
+  pcl::PointCloud<pcl::FPFHSignature33>::Ptr features;
+  std::vector<int> valid;  // indices with a finite feature
+};
+
+PointVector CropAndDownsample(const PointVector& points, double voxel_m, double max_range_m) {
+  PointVector cropped;
+  if (max_range_m > 0.0) {
+    cropped.reserve(points.size());
+    const double max_sq = max_range_m * max_range_m;
+    for (const Eigen::Vector3d& p : points) {
+      if (p.squaredNorm() <= max_sq) cropped.push_back(p);
+    }
+    return VoxelDownsample(cropped, voxel_m);
+  }
+  return VoxelDownsample(points, voxel_m);
+}
+
+CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationConfig& config,
+                            bool with_features) {
+  CoarseCloud cloud;
+  cloud.points = CropAndDownsample(points, config.coarse_voxel_m, config.coarse_max_range_m);
+  pcl::PointCloud<pcl::PointXYZ>::Ptr xyz(new pcl::PointCloud<pcl::PointXYZ>);
+  xyz->reserve(cloud.points.size());
+  for (const Eigen::Vector3d& p : cloud.points) {
+    xyz->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                                 static_cast<float>(p.z())));
+  }
+  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+  pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> normal_estimation;
+  normal_estimation.setInputCloud(xyz);
+  normal_estimation.setSearchMethod(tree);
+  normal_estimation.setRadiusSearch(config.normal_radius_m);
+  // Submap frames are sensor frames: orient normals towards the origin's upper side.
+  normal_estimation.setViewPoint(0.0f, 0.0f, 2.0f);
+  normal_estimation.compute(*normals);
+  cloud.normals.resize(cloud.points.size(), Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < normals->size(); ++i) {
+    const pcl::Normal& n = (*normals)[i];
+    if (std::isfinite(n.normal_x) && std::isfinite(n.normal_y) && std::isfinite(n.normal_z)) {
+      cloud.normals[i] = Eigen::Vector3d(n.normal_x, n.normal_y, n.normal_z);
+    }
+  }
+  if (!with_features) return cloud;
+  cloud.features.reset(new pcl::PointCloud<pcl::FPFHSignature33>);
+  pcl::FPFHEstimation<pcl::PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh;
+  fpfh.setInputCloud(xyz);
+  fpfh.setInputNormals(normals);
+  fpfh.setSearchMethod(tree);
+  fpfh.setRadiusSearch(config.feature_radius_m);
+  fpfh.compute(*cloud.features);
+  for (std::size_t i = 0; i < cloud.features->size(); ++i) {
+    const float* h = (*cloud.features)[i].histogram;
+    bool finite = cloud.normals[i].squaredNorm() > 0.5;
+    float sum = 0.0f;
+    for (int b = 0; b < 33 && finite; ++b) {
+      finite = std::isfinite(h[b]);
+      sum += h[b];
+    }
+    if (finite && sum > 0.0f) cloud.valid.push_back(static_cast<int>(i));
+  }
+  return cloud;
+}
+
+// Mutual nearest neighbours in FPFH space: (source index, target index).
+std::vector<std::pair<int, int>> MutualFeatureMatches(const CoarseCloud& source,
+                                                      const CoarseCloud& target) {
+  std::vector<std::pair<int, int>> matches;
+  if (source.valid.empty() || target.valid.empty()) return matches;
+  auto subset = [](const CoarseCloud& c) {
+    pcl::PointCloud<pcl::FPFHSignature33>::Ptr out(new pcl::PointCloud<pcl::FPFHSignature33>);
+    out->reserve(c.valid.size());
+    for (int i : c.valid) out->push_back((*c.features)[i]);
+    return out;
+  };
+  const auto source_features = subset(source);
+  const auto target_features = subset(target);
+  pcl::KdTreeFLANN<pcl::FPFHSignature33> source_tree, target_tree;
+  source_tree.setInputCloud(source_features);
+  target_tree.setInputCloud(target_features);
+  std::vector<int> index(1);
+  std::vector<float> distance_sq(1);
+  std::vector<int> target_to_source(target_features->size(), -1);
+  for (std::size_t t = 0; t < target_features->size(); ++t) {
+    if (source_tree.nearestKSearch((*target_features)[t], 1, index, distance_sq) == 1) {
+      target_to_source[t] = index[0];
+    }
+  }
+  for (std::size_t s = 0; s < source_features->size(); ++s) {
+    if (target_tree.nearestKSearch((*source_features)[s], 1, index, distance_sq) != 1) continue;
+    if (target_to_source[index[0]] != static_cast<int>(s)) continue;
+    matches.emplace_back(source.valid[s], target.valid[index[0]]);
+  }
+  return matches;
+}
+
+double TiltRad(const Eigen::Matrix3d& rotation) {
+  return std::acos(std::clamp(rotation(2, 2), -1.0, 1.0));
+}
+
+struct Hypothesis {
+  Pose3 pose = Pose3::Identity();
+  int score = 0;  // RANSAC inliers, or fitness x 1000
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+using Hypotheses = std::vector<Hypothesis, Eigen::aligned_allocator<Hypothesis>>;
+
+bool SamePose(const Pose3& a, const Pose3& b, const GlobalRegistrationConfig& config) {
+  const Pose3 d = se3::Between(a, b);
+  return se3::TranslationNorm(d) < config.distinct_translation_m &&
+         se3::RotationAngleRad(d) < config.distinct_rotation_rad;
+}
+
+// Keeps `best` sorted by score (descending), distinct, at most `capacity` long.
+void Offer(const Hypothesis& h, int capacity, const GlobalRegistrationConfig& config,
+           Hypotheses* best) {
+  for (Hypothesis& b : *best) {
+    if (SamePose(b.pose, h.pose, config)) {
+      if (h.score > b.score) b = h;
+      std::sort(best->begin(), best->end(),
+                [](const Hypothesis& x, const Hypothesis& y) { return x.score > y.score; });
+      return;
+    }
+  }
+  if (static_cast<int>(best->size()) >= capacity && best->back().score >= h.score) return;
+  best->push_back(h);
+  std::sort(best->begin(), best->end(),
+            [](const Hypothesis& x, const Hypothesis& y) { return x.score > y.score; });
+  if (static_cast<int>(best->size()) > capacity) best->pop_back();
+}
+
+Pose3 FitRigid(const std::vector<Eigen::Vector3d>& from, const std::vector<Eigen::Vector3d>& to) {
+  Eigen::Matrix3Xd a(3, from.size()), b(3, to.size());
+  for (std::size_t i = 0; i < from.size(); ++i) {
+    a.col(i) = from[i];
+    b.col(i) = to[i];
+  }
+  Pose3 pose = Pose3::Identity();
+  pose.matrix() = Eigen::umeyama(a, b, false);
+  return pose;
+}
+
+// RANSAC over correspondence triples; returns the best distinct hypotheses (inliers refit).
+Hypotheses RansacHypotheses(const CoarseCloud& source, const CoarseCloud& target,
+                            const std::vector<std::pair<int, int>>& matches,
+                            const GlobalRegistrationConfig& config) {
+  Hypotheses best;
+  const int n = static_cast<int>(matches.size());
+  if (n < 3) return best;
+  std::mt19937 rng(config.seed);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  const double inlier_sq = config.ransac_inlier_distance_m * config.ransac_inlier_distance_m;
+  const double min_edge = config.ransac_min_edge_m;
+  auto src = [&](int k) -> const Eigen::Vector3d& { return source.points[matches[k].first]; };
+  auto tgt = [&](int k) -> const Eigen::Vector3d& { return target.points[matches[k].second]; };
+  auto count_inliers = [&](const Pose3& pose, std::vector<int>* inliers) {
+    int count = 0;
+    for (int k = 0; k < n; ++k) {
+      if ((pose * src(k) - tgt(k)).squaredNorm() <= inlier_sq) {
+        ++count;
+        if (inliers) inliers->push_back(k);
+      }
+    }
+    return count;
+  };
+  const int capacity = std::max(1, config.num_hypotheses);
+  for (int it = 0; it < config.ransac_iterations; ++it) {
+    const int k[3] = {pick(rng), pick(rng), pick(rng)};
+    if (k[0] == k[1] || k[1] == k[2] || k[0] == k[2]) continue;
+    bool ok = true;
+    for (int e = 0; e < 3 && ok; ++e) {
+      const int i = k[e], j = k[(e + 1) % 3];
+      const double ds = (src(i) - src(j)).norm();
+      const double dt = (tgt(i) - tgt(j)).norm();
+      ok = ds >= min_edge && dt >= min_edge &&
+           std::min(ds, dt) >= config.ransac_edge_similarity * std::max(ds, dt);
+    }
+    if (!ok) continue;
+    const Pose3 pose = FitRigid({src(k[0]), src(k[1]), src(k[2])}, {tgt(k[0]), tgt(k[1]), tgt(k[2])});
+    if (!pose.matrix().allFinite() || TiltRad(pose.linear()) > config.max_tilt_rad) continue;
+    Hypothesis h;
+    h.pose = pose;
+    h.score = count_inliers(pose, nullptr);
+    if (h.score < 3) continue;
+    Offer(h, capacity, config, &best);
+  }
+  // Refit each hypothesis on its inliers (twice: the refit can gather more).
+  for (Hypothesis& h : best) {
+    for (int round = 0; round < 2; ++round) {
+      std::vector<int> inliers;
+      count_inliers(h.pose, &inliers);
+      if (inliers.size() < 3) break;
+      std::vector<Eigen::Vector3d> a, b;
+      for (int k : inliers) {
+        a.push_back(src(k));
+        b.push_back(tgt(k));
+      }
+      const Pose3 refit = FitRigid(a, b);
+      if (!refit.matrix().allFinite() || TiltRad(refit.linear()) > config.max_tilt_rad) break;
+      const int score = count_inliers(refit, nullptr);
+      if (score < h.score) break;
+      h.pose = refit;
+      h.score = score;
+    }
+  }
+  std::sort(best.begin(), best.end(),
+            [](const Hypothesis& x, const Hypothesis& y) { return x.score > y.score; });
+  return best;
+}
+
+Eigen::Vector3d Centroid(const PointVector& points) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) sum += p;
+  return points.empty() ? sum : Eigen::Vector3d(sum / static_cast<double>(points.size()));
+}
+
+// Yaw starts with centroid alignment, each refined by coarse ICP; best by fitness.
+Hypotheses YawSearchHypotheses(const CoarseCloud& source, const CoarseCloud& target,
+                               const GlobalRegistrationConfig& config) {
+  Hypotheses best;
+  StatusOr<KdTreeTarget> tree = KdTreeTarget::Create(target.points, config.fine.target);
+  StatusOr<IcpRegistration> icp = IcpRegistration::Create(config.fine.icp);
+  if (!tree.ok() || !icp.ok()) return best;
+  const Eigen::Vector3d cs = Centroid(source.points);
+  const Eigen::Vector3d ct = Centroid(target.points);
+  const int capacity = std::max(1, config.num_hypotheses);
+  for (int b = 0; b < config.yaw_bins; ++b) {
+    const double yaw = 2.0 * M_PI * b / config.yaw_bins;
+    Pose3 pose = Pose3::Identity();
+    pose.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    pose.translation() = ct - pose.linear() * cs;
+    double fitness = 0.0;
+    bool ok = true;
+    for (double distance : config.yaw_search_schedule_m) {
+      StatusOr<IcpResult> r =
+          icp.value().Register(source.points, tree.value(), pose, distance, distance / 3.0);
+      if (!r.ok()) {
+        ok = false;
+        break;
+      }
+      pose = r.value().pose;
+      fitness = r.value().fitness;
+    }
+    if (!ok || TiltRad(pose.linear()) > config.max_tilt_rad) continue;
+    Hypothesis h;
+    h.pose = pose;
+    h.score = static_cast<int>(std::lround(fitness * 1000.0));
+    Offer(h, capacity, config, &best);
+  }
+  return best;
+}
+
+// Fraction of the source's structure points (coarse normals with |n_z| small) that lie within
+// `structure_overlap_distance_m` of the target.
+double StructureOverlap(const CoarseCloud& source, const SubmapTarget& target, const Pose3& pose,
+                        const GlobalRegistrationConfig& config) {
+  const double max_sq = config.structure_overlap_distance_m * config.structure_overlap_distance_m;
+  std::size_t structure = 0, overlapping = 0;
+  for (std::size_t i = 0; i < source.points.size(); ++i) {
+    const Eigen::Vector3d& n = source.normals[i];
+    if (n.squaredNorm() < 0.5) continue;
+    if (std::abs((pose.linear() * n).z()) >= config.structure_max_normal_z) continue;
+    ++structure;
+    std::size_t index;
+    double distance_sq;
+    if (target.tree().Nearest(pose * source.points[i], &index, &distance_sq) &&
+        distance_sq <= max_sq) {
+      ++overlapping;
+    }
+  }
+  return structure == 0 ? 0.0 : static_cast<double>(overlapping) / structure;
+}
+
+}  // namespace
+
+GlobalRegistrationConfig::GlobalRegistrationConfig() {
+  // The fine stage starts from the coarse pose, which can be off by about a voxel and a few
+  // degrees: its agreement bounds only catch an ICP that ran away.
+  fine.max_correction_m = 3.0;
+  fine.max_correction_rad = 0.2;
+  fine.min_overlap_ratio = 0.3;
+}
+
+const char* GlobalRegistrationMethodName(GlobalRegistrationConfig::Method method) {
+  switch (method) {
+    case GlobalRegistrationConfig::Method::kFpfhRansac:
+      return "fpfh_ransac";
+    case GlobalRegistrationConfig::Method::kYawSearchIcp:
+      return "yaw_search_icp";
+  }
+  return "unknown";
+}
+
+Status GlobalRegistrationConfig::Validate() const {
+  if (!(coarse_voxel_m > 0.0)) return Status::Error("global_registration.coarse_voxel_m must be > 0");
+  if (!std::isfinite(coarse_max_range_m)) {
+    return Status::Error("global_registration.coarse_max_range_m must be finite");
+  }
+  if (!(normal_radius_m > 0.0) || !(feature_radius_m > 0.0)) {
+    return Status::Error("global_registration normal/feature radii must be > 0");
+  }
+  if (ransac_iterations < 1) return Status::Error("global_registration.ransac_iterations must be >= 1");
+  if (!(ransac_inlier_distance_m > 0.0)) {
+    return Status::Error("global_registration.ransac_inlier_distance_m must be > 0");
+  }
+  if (!(ransac_edge_similarity > 0.0 && ransac_edge_similarity <= 1.0)) {
+    return Status::Error("global_registration.ransac_edge_similarity must be in (0, 1]");
+  }
+  if (!(ransac_min_edge_m >= 0.0)) return Status::Error("global_registration.ransac_min_edge_m must be >= 0");
+  if (!(max_tilt_rad > 0.0 && max_tilt_rad <= M_PI)) {
+    return Status::Error("global_registration.max_tilt_rad must be in (0, pi]");
+  }
+  if (min_ransac_inliers < 3) return Status::Error("global_registration.min_ransac_inliers must be >= 3");
+  if (yaw_bins < 1) return Status::Error("global_registration.yaw_bins must be >= 1");
+  if (yaw_search_schedule_m.empty()) {
+    return Status::Error("global_registration.yaw_search_schedule_m must not be empty");
+  }
+  for (double d : yaw_search_schedule_m) {
+    if (!(d > 0.0)) return Status::Error("global_registration.yaw_search_schedule_m entries must be > 0");
+  }
+  if (num_hypotheses < 1) return Status::Error("global_registration.num_hypotheses must be >= 1");
+  if (!(distinct_translation_m > 0.0) || !(distinct_rotation_rad > 0.0)) {
+    return Status::Error("global_registration distinct thresholds must be > 0");
+  }
+  if (!(structure_max_normal_z > 0.0 && structure_max_normal_z <= 1.0)) {
+    return Status::Error("global_registration.structure_max_normal_z must be in (0, 1]");
+  }
+  if (!(structure_overlap_distance_m > 0.0)) {
+    return Status::Error("global_registration.structure_overlap_distance_m must be > 0");
+  }
+  if (!(min_structure_overlap_ratio >= 0.0 && min_structure_overlap_ratio <= 1.0)) {
+    return Status::Error("global_registration.min_structure_overlap_ratio must be in [0, 1]");
+  }
+  return fine.Validate();
+}
+
+StatusOr<GlobalRegistration> GlobalRegistration::Create(const GlobalRegistrationConfig& config) {
+  Status s = config.Validate();
+  if (!s.ok()) return s;
+  StatusOr<SubmapRegistration> fine = SubmapRegistration::Create(config.fine);
+  if (!fine.ok()) return fine.status();
+  return GlobalRegistration(config, std::move(fine.value()));
+}
+
+GlobalRegistrationResult GlobalRegistration::Register(const PointVector& source,
+                                                      const PointVector& target) const {
+  const auto start = Clock::now();
+  GlobalRegistrationResult result;
+  auto finish = [&](std::string reason) {
+    result.reason = std::move(reason);
+    result.time_s = SecondsSince(start);
+    return result;
+  };
+  if (source.empty() || target.empty()) return finish("empty submap");
+
+  const bool features = config_.method == GlobalRegistrationConfig::Method::kFpfhRansac;
+  const CoarseCloud coarse_source = MakeCoarseCloud(source, config_, features);
+  const CoarseCloud coarse_target = MakeCoarseCloud(target, config_, features);
+  Hypotheses hypotheses;
+  if (features) {
+    const std::vector<std::pair<int, int>> matches =
+        MutualFeatureMatches(coarse_source, coarse_target);
+    hypotheses = RansacHypotheses(coarse_source, coarse_target, matches, config_);
+    if (hypotheses.empty() || hypotheses.front().score < config_.min_ransac_inliers) {
+      result.coarse_inliers = hypotheses.empty() ? 0 : hypotheses.front().score;
+      result.coarse_time_s = SecondsSince(start);
+      return finish("no consistent features (" + std::to_string(result.coarse_inliers) +
+                    " RANSAC inliers of " + std::to_string(matches.size()) + " matches)");
+    }
+    // Hypotheses far weaker than the best are not worth a fine registration.
+    const int floor = std::max(config_.min_ransac_inliers, hypotheses.front().score / 3);
+    hypotheses.erase(std::remove_if(hypotheses.begin(), hypotheses.end(),
+                                    [&](const Hypothesis& h) { return h.score < floor; }),
+                     hypotheses.end());
+  } else {
+    hypotheses = YawSearchHypotheses(coarse_source, coarse_target, config_);
+    if (hypotheses.empty()) return finish("yaw search: no ICP start converged");
+  }
+  result.coarse_time_s = SecondsSince(start);
+
+  StatusOr<SubmapTarget> fine_target = SubmapTarget::Create(target, config_.fine);
+  if (!fine_target.ok()) return finish("target: " + fine_target.status().message());
+
+  bool have = false;
+  std::string first_reason;
+  for (const Hypothesis& h : hypotheses) {
+    const SubmapRegistrationResult fine = fine_.Register(source, fine_target.value(), h.pose);
+    std::string reason = fine.reason;
+    double structure = 0.0;
+    if (fine.accepted) {
+      structure = StructureOverlap(coarse_source, fine_target.value(), fine.T_target_source, config_);
+      if (structure < config_.min_structure_overlap_ratio) {
+        reason = "structure overlap " + std::to_string(structure) + " below " +
+                 std::to_string(config_.min_structure_overlap_ratio);
+      }
+    }
+    if (reason.empty()) {
+      if (!have || fine.overlap_ratio > result.overlap_ratio) {
+        have = true;
+        result.accepted = true;
+        result.T_target_source = fine.T_target_source;
+        result.overlap_ratio = fine.overlap_ratio;
+        result.information = fine.information;
+        result.coarse_inliers = h.score;
+        result.structure_overlap_ratio = structure;
+      }
+    } else if (!have && first_reason.empty()) {
+      first_reason = reason;
+      result.T_target_source = fine.T_target_source;
+      result.overlap_ratio = fine.overlap_ratio;
+      result.coarse_inliers = h.score;
+      result.structure_overlap_ratio = structure;
+    }
+  }
+  if (!have) return finish(first_reason);
+  return finish("");
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

@@ -1,0 +1,152 @@
+#include "multisession_mapper/core/point_index.h"
+
+#include <algorithm>
+#include <utility>
+
+#include <nanoflann.hpp>
+
+namespace multisession_mapper {
+namespace core {
+
+namespace {
+
+struct Adaptor {
+  const PointVector* points = nullptr;
+  std::size_t kdtree_get_point_count() const { return points->size(); }
+  double kdtree_get_pt(std::size_t i, std::size_t dim) const { return (*points)[i](dim); }
+  template <class Bbox>
+  bool kdtree_get_bbox(Bbox& /*bb*/) const {
+    return false;
+  }
+};
+
+using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>,
+                                                 Adaptor, 3, std::uint32_t>;
+
+// Collects indices within a squared radius; stops after `cap` (0: no cap).
+class IndexCollector {
+ public:
+  IndexCollector(double radius_sq, std::size_t cap, std::vector<std::uint32_t>* out)
+      : radius_sq_(radius_sq), cap_(cap), out_(out) {}
+  std::size_t size() const { return out_->size(); }
+  bool full() const { return true; }
+  double worstDist() const { return radius_sq_; }
+  bool addPoint(double dist, std::uint32_t index) {
+    if (dist <= radius_sq_) out_->push_back(index);
+    return cap_ == 0 || out_->size() < cap_;
+  }
+
+ private:
+  double radius_sq_;
+  std::size_t cap_;
+  std::vector<std::uint32_t>* out_;
+};
+
+// Keeps the nearest index within an initial squared radius (prunes the search from the
+// start, unlike a k = 1 search that begins with an infinite radius).
+class BoundedNearest {
+ public:
+  explicit BoundedNearest(double radius_sq) : best_sq_(radius_sq) {}
+  std::size_t size() const { return found_ ? 1 : 0; }
+  bool full() const { return true; }
+  double worstDist() const { return best_sq_; }
+  bool addPoint(double dist, std::uint32_t index) {
+    if (dist <= best_sq_) {
+      best_sq_ = dist;
+      index_ = index;
+      found_ = true;
+    }
+    return true;
+  }
+  bool found() const { return found_; }
+  std::uint32_t index() const { return index_; }
+  double distance_sq() const { return best_sq_; }
+
+ private:
+  double best_sq_;
+  std::uint32_t index_ = 0;
+  bool found_ = false;
+};
+
+}  // namespace
+
+struct PointIndex::Impl {
+  explicit Impl(PointVector pts) : points(std::move(pts)) {
+    adaptor.points = &points;
+    tree = std::make_unique<Tree>(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    if (!points.empty()) tree->buildIndex();
+  }
+  PointVector points;
+  Adaptor adaptor;
+  std::unique_ptr<Tree> tree;
+};
+
+StatusOr<PointIndex> PointIndex::Create(PointVector points) {
+  for (const Eigen::Vector3d& p : points) {
+    if (!p.allFinite()) return Status::Error("point_index: non-finite point");
+  }
+  return PointIndex(std::make_unique<Impl>(std::move(points)));
+}
+
+PointIndex::PointIndex(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+PointIndex::PointIndex(PointIndex&&) noexcept = default;
+PointIndex& PointIndex::operator=(PointIndex&&) noexcept = default;
+PointIndex::~PointIndex() = default;
+
+const PointVector& PointIndex::points() const { return impl_->points; }
+
+bool PointIndex::Nearest(const Eigen::Vector3d& query, std::uint32_t* index,
+                         double* distance_sq) const {
+  if (impl_->points.empty()) return false;
+  std::uint32_t i = 0;
+  double d = 0.0;
+  if (impl_->tree->knnSearch(query.data(), 1, &i, &d) == 0) return false;
+  *index = i;
+  *distance_sq = d;
+  return true;
+}
+
+bool PointIndex::NearestWithin(const Eigen::Vector3d& query, double max_radius_m,
+                               std::uint32_t* index, double* distance_sq) const {
+  if (impl_->points.empty()) return false;
+  BoundedNearest result(max_radius_m * max_radius_m);
+  impl_->tree->findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, false));
+  if (!result.found()) return false;
+  *index = result.index();
+  *distance_sq = result.distance_sq();
+  return true;
+}
+
+void PointIndex::Radius(const Eigen::Vector3d& query, double radius_m,
+                        std::vector<std::uint32_t>* out) const {
+  out->clear();
+  if (impl_->points.empty()) return;
+  IndexCollector collector(radius_m * radius_m, 0, out);
+  impl_->tree->findNeighbors(collector, query.data(), nanoflann::SearchParams(32, 0.0f, false));
+}
+
+std::size_t PointIndex::CountWithin(const Eigen::Vector3d& query, double radius_m,
+                                    std::size_t cap) const {
+  if (impl_->points.empty()) return 0;
+  std::vector<std::uint32_t> found;
+  IndexCollector collector(radius_m * radius_m, cap, &found);
+  impl_->tree->findNeighbors(collector, query.data(), nanoflann::SearchParams(32, 0.0f, false));
+  return found.size();
+}
+
+void PointIndex::Nearest(const Eigen::Vector3d& query, std::size_t k, double max_radius_m,
+                         std::vector<std::uint32_t>* out) const {
+  out->clear();
+  if (impl_->points.empty() || k == 0) return;
+  k = std::min(k, impl_->points.size());
+  std::vector<std::uint32_t> indices(k);
+  std::vector<double> dists(k);
+  const std::size_t found = impl_->tree->knnSearch(query.data(), k, indices.data(), dists.data());
+  const double max_sq = max_radius_m * max_radius_m;
+  for (std::size_t j = 0; j < found; ++j) {
+    if (dists[j] <= max_sq) out->push_back(indices[j]);
+  }
+}
+
+}  // namespace core
+}  // namespace multisession_mapper

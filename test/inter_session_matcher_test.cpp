@@ -1,0 +1,270 @@
+#include "multisession_mapper/core/inter_session_matcher.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/voxel_downsample.h"
+#include "synthetic_lidar_scene.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+using Poses = std::vector<Pose3, Eigen::aligned_allocator<Pose3>>;
+
+// Sensor poses every 2 m along a straight drive of `scans` scans.
+Poses Drive(double x, double y, double yaw_rad, int scans) {
+  Poses poses;
+  for (int i = 0; i < scans; ++i) {
+    const double s = 2.0 * i;
+    poses.push_back(se3::FromXyzRpy(x + s * std::cos(yaw_rad), y + s * std::sin(yaw_rad), 1.8,
+                                    0.01 * std::sin(i), 0.01 * std::cos(i), yaw_rad));
+  }
+  return poses;
+}
+
+// One simulated session of a synthetic world: 10 scans (20 m) per submap, origins in the frame
+// `T_world_frame` (the map frame for the history, the session frame for the new session), the
+// per-scan place recognizer fed as the pipeline would.
+struct SimSession {
+  std::vector<Submap, Eigen::aligned_allocator<Submap>> submaps;
+  Poses world_origins;  // T_world_submap of every submap (truth)
+};
+
+SimSession Simulate(const test::SyntheticScene& scene, const Poses& poses,
+                    const std::string& name, const Pose3& T_world_frame, double stamp0_s,
+                    unsigned seed, PlaceRecognizer* recognizer) {
+  SimSession session;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const std::uint32_t id = static_cast<std::uint32_t>(i / 10);
+    if (i % 10 == 0) {
+      Submap submap;
+      submap.session = name;
+      submap.id = id;
+      submap.T_map_submap = T_world_frame.inverse() * poses[i];
+      session.submaps.push_back(submap);
+      session.world_origins.push_back(poses[i]);
+    }
+    Submap& submap = session.submaps.back();
+    const Pose3 pose = poses[i];
+    LidarScan scan = test::SimulateVlp16(scene, [&](double) { return pose; }, stamp0_s + i,
+                                         seed + static_cast<unsigned>(i), 0.01, 900, 0.1, false,
+                                         80.0);
+    EXPECT_TRUE(recognizer->AddScan(scan, id).ok());
+    SubmapScanRecord record;
+    record.stamp_s = scan.stamp_s;
+    record.T_submap_sensor = session.world_origins.back().inverse() * pose;
+    submap.scans.push_back(record);
+    for (const LidarPoint& p : scan.points) {
+      submap.points.push_back(record.T_submap_sensor * p.position_m.cast<double>());
+    }
+  }
+  for (Submap& s : session.submaps) s.points = VoxelDownsample(s.points, 0.2);
+  return session;
+}
+
+// History: one session driving east along y = 0 (5 submaps). Current: the same road driven
+// west on the other lane over 4 submaps, then a 5th submap far away in an unvisited place.
+class InterSessionMatcherTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    data_ = new Data;
+    Data& d = *data_;
+    const Poses history_poses = Drive(-50.0, 0.0, 0.0, 50);
+    Poses current_poses = Drive(40.0, 1.5, M_PI, 40);
+    const Poses elsewhere = Drive(150.0, 150.0, 0.5, 10);
+    current_poses.insert(current_poses.end(), elsewhere.begin(), elsewhere.end());
+    std::vector<Eigen::Vector2d> clear;
+    for (const Poses* p : std::vector<const Poses*>{&history_poses, &current_poses}) {
+      for (const Pose3& pose : *p) clear.push_back(pose.translation().head<2>());
+    }
+    // Boxes around the road and around the unvisited place (a second scene there).
+    test::SyntheticScene scene(3, 260, 75.0, clear, 3.0);
+    std::vector<test::SceneBox> boxes = scene.boxes();
+    test::SyntheticScene far(4, 60, 40.0, {Eigen::Vector2d::Zero()}, 0.0);
+    for (test::SceneBox b : far.boxes()) {
+      b.center += Eigen::Vector3d(160.0, 160.0, 0.0);
+      if ((b.center.head<2>() - Eigen::Vector2d(155.0, 152.0)).norm() > 14.0) boxes.push_back(b);
+    }
+    scene.SetBoxes(boxes);
+
+    d.T_world_map = history_poses.front();
+    PlaceRecognizer history_recognizer =
+        PlaceRecognizer::Create(PlaceRecognizerConfig(), "h0", nullptr).value();
+    const SimSession history =
+        Simulate(scene, history_poses, "h0", d.T_world_map, 1000.0, 1, &history_recognizer);
+    d.history.sessions.push_back(SessionRecord{"h0", "h0.bag", 50, 50.0, ""});
+    d.history.submaps = history.submaps;
+    d.history_world = history.world_origins;
+    StatusOr<DescriptorDatabase> db = history_recognizer.NewDatabase();
+    ASSERT_TRUE(db.ok());
+    ASSERT_TRUE(history_recognizer.AppendTo(&db.value()).ok());
+    d.database = std::make_shared<const DescriptorDatabase>(std::move(db.value()));
+
+    d.T_world_session = current_poses.front();
+    d.recognizer = std::make_unique<PlaceRecognizer>(
+        PlaceRecognizer::Create(PlaceRecognizerConfig(), "c1", d.database).value());
+    const SimSession current = Simulate(scene, current_poses, "c1", d.T_world_session, 5000.0,
+                                        1000, d.recognizer.get());
+    d.current.session = "c1";
+    d.current.submaps = current.submaps;
+    d.current_world = current.world_origins;
+  }
+  static void TearDownTestSuite() {
+    delete data_;
+    data_ = nullptr;
+  }
+
+  // Truth of a loop: current submap frame -> history submap frame.
+  static Pose3 TrueRelative(std::size_t history_index, std::uint32_t current_id) {
+    return data_->history_world[history_index].inverse() * data_->current_world[current_id];
+  }
+  static Pose3 TrueMapSession() { return data_->T_world_map.inverse() * data_->T_world_session; }
+
+  static void ExpectEveryAcceptedLoopTrue(const InterSessionMatchResult& r) {
+    for (const InterSessionLoop& loop : r.loops) {
+      const Pose3 error =
+          se3::Between(TrueRelative(loop.history_index, loop.current_submap), loop.T_history_current);
+      EXPECT_LT(se3::TranslationNorm(error), 0.1) << "loop " << loop.current_submap;
+      EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg) << "loop " << loop.current_submap;
+    }
+  }
+
+  struct Data {
+    MapContents history;
+    Poses history_world, current_world;
+    Pose3 T_world_map = Pose3::Identity(), T_world_session = Pose3::Identity();
+    std::shared_ptr<const DescriptorDatabase> database;
+    std::unique_ptr<PlaceRecognizer> recognizer;
+    SessionResult current;
+  };
+  static Data* data_;
+};
+InterSessionMatcherTest::Data* InterSessionMatcherTest::data_ = nullptr;
+
+TEST_F(InterSessionMatcherTest, FindsTheRevisitedSubmapsAndTheSessionOffset) {
+  ASSERT_EQ(data_->history.submaps.size(), 5u);
+  ASSERT_EQ(data_->current.submaps.size(), 5u);
+  const InterSessionMatcher matcher =
+      InterSessionMatcher::Create(InterSessionMatcherConfig()).value();
+  const StatusOr<InterSessionMatchResult> result =
+      matcher.Match(data_->history, data_->current, *data_->recognizer);
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  const InterSessionMatchResult& r = result.value();
+  ASSERT_EQ(r.votes.size(), 5u);
+  std::set<std::uint32_t> matched;
+  for (const InterSessionLoop& loop : r.loops) matched.insert(loop.current_submap);
+  for (const LoopRecord& rec : r.records) {
+    std::cout << "  cur " << rec.current_submap << " -> " << rec.history_session << "/"
+              << rec.history_submap << " " << LoopStatusName(rec.status) << " vote "
+              << rec.vote_proportion << " overlap " << rec.overlap_ratio << " " << rec.reason
+              << std::endl;
+    EXPECT_EQ(rec.kind, LoopKind::kInter);
+    EXPECT_EQ(rec.current_session, "c1");
+    EXPECT_NE(rec.status, LoopStatus::kCandidate) << "every candidate is decided";
+    if (rec.status != LoopStatus::kAccepted) EXPECT_FALSE(rec.reason.empty());
+  }
+  // The four submaps on the revisited road are matched (at least three of them: one may be
+  // left undefined by the vote), the one in the unvisited place never is.
+  EXPECT_GE(matched.size(), 3u);
+  EXPECT_EQ(matched.count(4), 0u);
+  ExpectEveryAcceptedLoopTrue(r);
+  ASSERT_TRUE(r.aligned);
+  const Pose3 error = se3::Between(TrueMapSession(), r.T_map_session);
+  EXPECT_LT(se3::TranslationNorm(error), 0.1);
+  EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg);
+  EXPECT_EQ(r.registration_s.size(),
+            static_cast<std::size_t>(std::count_if(r.records.begin(), r.records.end(),
+                                                   [](const LoopRecord& x) { return x.has_pose; })));
+}
+
+TEST_F(InterSessionMatcherTest, SequenceConsistencyRejectsASingleContradictingLoop) {
+  // Shift one history submap's origin by 4 m (as an aliased place or a wrong history pose
+  // would): its loop implies a map <- session transform that contradicts all the others.
+  MapContents history = data_->history;
+  const std::size_t shifted = 2;
+  history.submaps[shifted].T_map_submap.translation() += Eigen::Vector3d(4.0, -1.0, 0.0);
+  const InterSessionMatcher matcher =
+      InterSessionMatcher::Create(InterSessionMatcherConfig()).value();
+  const InterSessionMatchResult r =
+      matcher.Match(history, data_->current, *data_->recognizer).value();
+  int rejected_inconsistent = 0;
+  for (const LoopRecord& rec : r.records) {
+    if (rec.history_submap == static_cast<std::int64_t>(shifted) && rec.has_pose &&
+        rec.reason.find("inconsistent") != std::string::npos) {
+      EXPECT_EQ(rec.status, LoopStatus::kRejected);
+      ++rejected_inconsistent;
+    }
+  }
+  EXPECT_GE(rejected_inconsistent, 1);
+  for (const InterSessionLoop& loop : r.loops) EXPECT_NE(loop.history_index, shifted);
+  ExpectEveryAcceptedLoopTrue(r);
+  ASSERT_TRUE(r.aligned);
+  const Pose3 error = se3::Between(TrueMapSession(), r.T_map_session);
+  EXPECT_LT(se3::TranslationNorm(error), 0.1);
+}
+
+TEST_F(InterSessionMatcherTest, TooFewAgreeingLoopsAlignNothing) {
+  InterSessionMatcherConfig config;
+  config.consistency.min_group_size = 50;
+  const InterSessionMatchResult r = InterSessionMatcher::Create(config)
+                                        .value()
+                                        .Match(data_->history, data_->current, *data_->recognizer)
+                                        .value();
+  EXPECT_FALSE(r.aligned);
+  EXPECT_TRUE(r.loops.empty());
+  EXPECT_TRUE(r.T_map_session.isApprox(Pose3::Identity()));
+  int too_few = 0;
+  for (const LoopRecord& rec : r.records) {
+    EXPECT_NE(rec.status, LoopStatus::kAccepted);
+    too_few += rec.reason.find("too few consistent loops") != std::string::npos;
+  }
+  EXPECT_GE(too_few, 3);
+}
+
+TEST_F(InterSessionMatcherTest, FusedHistorySubmapsAreSkipped) {
+  MapContents history = data_->history;
+  history.submaps[1].state = SubmapState::kFused;
+  const InterSessionMatchResult r = InterSessionMatcher::Create(InterSessionMatcherConfig())
+                                        .value()
+                                        .Match(history, data_->current, *data_->recognizer)
+                                        .value();
+  for (const InterSessionLoop& loop : r.loops) EXPECT_NE(loop.history_index, 1u);
+  for (const LoopRecord& rec : r.records) {
+    if (rec.history_submap == 1) {
+      EXPECT_EQ(rec.status, LoopStatus::kRejected);
+      EXPECT_FALSE(rec.has_pose) << "a fused submap is never registered";
+    }
+  }
+  ExpectEveryAcceptedLoopTrue(r);
+}
+
+TEST(InterSessionMatcherConfigTest, ValidatesFields) {
+  EXPECT_TRUE(InterSessionMatcherConfig().Validate().ok());
+  InterSessionMatcherConfig c;
+  c.neighbour_distance_m = 0.0;
+  EXPECT_FALSE(InterSessionMatcher::Create(c).ok());
+  c = InterSessionMatcherConfig();
+  c.consistency.min_group_size = 0;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.consistency.max_rotation_rad = -1.0;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.registration.ransac_iterations = 0;
+  EXPECT_FALSE(c.Validate().ok());
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper

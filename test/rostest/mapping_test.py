@@ -1,0 +1,159 @@
+#!/usr/bin/env python3
+"""Rostest of the ROS interface (issue 8): plays two simulated sessions (the `tiny` profile,
+generated here: CI has no data) through launch/mapping.launch without RViz, and checks that
+odometry, submaps, place matches, loop candidates, the merge summary and dynamic points are
+published, that the map directory is written, and that a `dynparam set` change is applied and
+logged. Takes about 2-3 minutes."""
+import os
+import re
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+import unittest
+
+import rospy
+import rostest
+import yaml
+from catkin.find_in_workspaces import find_in_workspaces
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Log
+from std_msgs.msg import String
+
+from multisession_mapper.msg import DynamicPoints, LoopCandidateArray, PlaceMatch, SubmapInfo
+
+PKG = "multisession_mapper"
+
+
+class Collector:
+    def __init__(self):
+        self.clear()
+        rospy.Subscriber("/odom", Odometry, lambda m: self.count("odom"), queue_size=1000)
+        rospy.Subscriber("/submaps", SubmapInfo, self.on_submap, queue_size=1000)
+        rospy.Subscriber("/place_matches", PlaceMatch, self.on_match, queue_size=1000)
+        rospy.Subscriber("/loop_candidates", LoopCandidateArray, self.on_loops, queue_size=10)
+        rospy.Subscriber("/dynamic_points", DynamicPoints, self.on_dynamic, queue_size=1000)
+        rospy.Subscriber("/change_summary", String, self.on_summary, queue_size=10)
+        rospy.Subscriber("/rosout_agg", Log, self.on_log, queue_size=1000)
+
+    def clear(self):
+        self.counts = {}
+        self.sessions = set()
+        self.matched = 0
+        self.loops = None
+        self.dynamic_points = 0
+        self.summaries = []
+        self.logs = []
+
+    def count(self, key):
+        self.counts[key] = self.counts.get(key, 0) + 1
+
+    def on_submap(self, m):
+        self.count("submaps")
+        self.sessions.add(m.session)
+
+    def on_match(self, m):
+        self.count("place_matches")
+        self.matched += int(m.matched)
+
+    def on_loops(self, m):
+        self.loops = m
+
+    def on_dynamic(self, m):
+        self.dynamic_points += m.removed.width
+
+    def on_summary(self, m):
+        self.summaries.append(m.data)
+
+    def on_log(self, m):
+        self.logs.append(m.msg)
+
+
+class MappingLaunchTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("mapping_test")
+        cls.tmp = tempfile.mkdtemp(prefix="msm_rostest_")
+        sim = find_in_workspaces(["libexec"], project=PKG, path="simulate_campus", first_match_only=True)
+        assert sim, "simulate_campus not built"
+        cls.data = os.path.join(cls.tmp, "data")
+        subprocess.check_call([sim[0], "--profile", "tiny", "--sessions", "2", "--seed", "1",
+                               "--out", cls.data, "--quiet"])
+        # 5 m submaps so that the ~14 m route gives several (default: 20 m).
+        source = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "cfg", "default.yaml")
+        with open(source) as f:
+            config = yaml.safe_load(f)
+        config["submap"]["max_translation_m"] = 5.0
+        cls.config = os.path.join(cls.tmp, "config.yaml")
+        with open(cls.config, "w") as f:
+            yaml.safe_dump(config, f)
+        cls.map_dir = os.path.join(cls.tmp, "map")
+        cls.collector = Collector()
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def run_session(self, bag, dynparam=None, timeout_s=150.0):
+        c = self.collector
+        c.clear()
+        launch = subprocess.Popen(
+            ["roslaunch", PKG, "mapping.launch", "bag:=" + os.path.join(self.data, bag),
+             "map_dir:=" + self.map_dir, "config:=" + self.config, "idle_finish_s:=3.0",
+             "start_delay:=4.0"])
+        try:
+            deadline = time.time() + timeout_s
+            changed = False
+            while time.time() < deadline and not c.summaries:
+                if dynparam and not changed and c.counts.get("odom", 0) > 5:
+                    subprocess.check_call(["rosrun", "dynamic_reconfigure", "dynparam", "set"] + dynparam)
+                    changed = True
+                time.sleep(0.2)
+            time.sleep(1.0)  # latched topics published with the summary
+        finally:
+            launch.send_signal(signal.SIGINT)
+            try:
+                launch.wait(30)
+            except subprocess.TimeoutExpired:
+                launch.kill()
+        self.assertTrue(c.summaries, "no change_summary within %.0f s (session %s)" % (timeout_s, bag))
+        return c
+
+    def test_two_sessions(self):
+        c = self.run_session("s00.bag", dynparam=["/submap_manager", "submap_max_translation_m", "4.0"])
+        self.assertGreater(c.counts.get("odom", 0), 30)
+        self.assertGreaterEqual(c.counts.get("submaps", 0), 2)
+        self.assertEqual(c.sessions, {"s00"})
+        self.assertIn("(first)", c.summaries[-1])
+        self.assertIn("saved to", c.summaries[-1])
+        self.assertTrue(os.path.isfile(os.path.join(self.map_dir, "manifest.yaml")))
+        # The dynparam change was applied (the nodelet logs every change with its new value).
+        self.assertTrue(any("SubmapManager: reconfigured" in l and "submap 4.0 m" in l for l in c.logs),
+                        "no reconfigure log line for submap 4.0 m")
+
+        c = self.run_session("s01.bag")
+        self.assertGreater(c.counts.get("odom", 0), 30)
+        self.assertEqual(c.sessions, {"s01"})
+        # Every scan is queried against the first session's database; the route is the same.
+        self.assertGreater(c.counts.get("place_matches", 0), 30)
+        self.assertGreater(c.matched, 0)
+        self.assertIsNotNone(c.loops)
+        self.assertGreater(len(c.loops.candidates), 0)
+        self.assertEqual(len(c.loops.candidates), len(c.loops.history_origins))
+        summary = c.summaries[-1]
+        rospy.loginfo("second session: %s; %d dynamic points published", summary, c.dynamic_points)
+        self.assertIn("session 's01'", summary)
+        self.assertNotIn("not merged", summary)
+        self.assertIn("saved to", summary)
+        removed = re.search(r"(\d+) dynamic points removed", summary)
+        self.assertIsNotNone(removed, summary)
+        # Every removed point is published on dynamic_points.
+        self.assertEqual(c.dynamic_points, int(removed.group(1)))
+        with open(os.path.join(self.map_dir, "manifest.yaml")) as f:
+            manifest = f.read()
+        self.assertIn("s00", manifest)
+
+
+if __name__ == "__main__":
+    rostest.rosrun(PKG, "mapping_launch", MappingLaunchTest)

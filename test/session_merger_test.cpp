@@ -1,0 +1,267 @@
+#include "multisession_mapper/core/session_merger.h"
+
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "multisession_mapper/core/se3.h"
+#include "synthetic_lidar_scene.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+// Two sessions through the same street of boxes: the first drives it one way with a parked
+// car (a box) beside the road, the second the opposite way, starting elsewhere, with the car
+// gone. Each session's frame is its first sensor pose, so the merge must find the second
+// session in the map without any initial guess.
+class SessionMergerTest : public ::testing::Test {
+ protected:
+  static constexpr double kPeriod = 0.1;
+
+  SessionMergerTest()
+      : trajectory_(3.0, {{6.0, 0.0}, {8.0, 0.12}, {10.0, 0.0}}, 2.0),
+        scene_(11, 70, 60.0, trajectory_.PathXy(0.25), 3.0),
+        scene_with_car_(scene_) {
+    test::SceneBox car;
+    car.center = CarCenter();
+    car.half_size = Eigen::Vector3d(2.2, 0.9, 0.75);
+    car.yaw_rad = 0.0;
+    std::vector<test::SceneBox> boxes = scene_.boxes();
+    boxes.push_back(car);
+    scene_with_car_.SetBoxes(boxes);
+  }
+
+  // Beside the road, 4.5 m to the left of the first straight.
+  Eigen::Vector3d CarCenter() const {
+    const Pose3 at = trajectory_.PoseAt(4.0);
+    Eigen::Vector3d c = at * Eigen::Vector3d(0.0, 4.5, 0.0);
+    c.z() = 0.75;
+    return c;
+  }
+
+  // World pose of the sensor; session 1 drives forwards, session 2 backwards (turned round).
+  Pose3 Truth(int session, double t) const {
+    if (session == 0) return trajectory_.PoseAt(t);
+    const double back = trajectory_.duration_s() - 1.0 - t;
+    return trajectory_.PoseAt(back) * se3::FromXyzRpy(0, 0, 0, 0, 0, M_PI);
+  }
+
+  // Maps one session; the recognizer queries `history` (null for the first session).
+  struct Mapped {
+    SessionResult result;
+    std::unique_ptr<PlaceRecognizer> recognizer;
+  };
+  Mapped MapSession(int session, const test::SyntheticScene& scene, const std::string& name,
+                    std::shared_ptr<const DescriptorDatabase> history, double start_s = 0.0,
+                    double stamp_offset_s = 0.0) {
+    Mapped out;
+    StatusOr<SessionMapper> mapper = SessionMapper::Create(SessionMapperConfig(), name);
+    EXPECT_TRUE(mapper.ok());
+    StatusOr<PlaceRecognizer> recognizer =
+        PlaceRecognizer::Create(PlaceRecognizerConfig(), name, std::move(history));
+    EXPECT_TRUE(recognizer.ok()) << recognizer.status().message();
+    const int scans = static_cast<int>((trajectory_.duration_s() - 1.5 - start_s) / kPeriod);
+    for (int i = 0; i < scans; ++i) {
+      const double t = start_s + i * kPeriod;
+      const LidarScan scan = test::SimulateVlp16(
+          scene, [&](double time) { return Truth(session, time - stamp_offset_s); },
+          t + stamp_offset_s, 1000 * session + i, 0.02, 900);
+      EXPECT_TRUE(mapper.value().AddScan(scan).ok());
+      EXPECT_TRUE(recognizer.value()
+                      .AddScan(mapper.value().last_odometry()->deskewed_scan,
+                               mapper.value().current_submap_id())
+                      .ok());
+    }
+    StatusOr<SessionResult> result = mapper.value().Finish();
+    EXPECT_TRUE(result.ok()) << result.status().message();
+    out.result = std::move(result.value());
+    out.recognizer = std::make_unique<PlaceRecognizer>(std::move(recognizer.value()));
+    return out;
+  }
+
+  static SessionRecord Record(const std::string& name) {
+    SessionRecord r;
+    r.name = name;
+    r.bag = name + ".bag";
+    return r;
+  }
+
+  static std::shared_ptr<const DescriptorDatabase> DatabaseOf(const MapContents& map) {
+    const auto it = map.files.find("database/descriptors.bin");
+    if (it == map.files.end()) return nullptr;
+    std::stringstream bytes(it->second);
+    StatusOr<DescriptorDatabase> db = DescriptorDatabase::Read(
+        bytes, it->second.size(), "test", PlaceRecognizerConfig().database);
+    if (!db.ok()) return nullptr;
+    return std::make_shared<DescriptorDatabase>(std::move(db.value()));
+  }
+
+  static std::size_t ActivePoints(const MapContents& map) {
+    std::size_t n = 0;
+    for (const Submap& s : map.submaps) n += s.state == SubmapState::kActive ? s.points.size() : 0;
+    return n;
+  }
+
+  // Map points (map frame = sensor frame of session 1's first scan) inside the car's box.
+  std::size_t PointsOnCar(const MapContents& map) const {
+    const Pose3 T_map_world = Truth(0, 0.0).inverse();
+    const Eigen::Vector3d c = T_map_world * CarCenter();
+    std::size_t n = 0;
+    for (const Submap& s : map.submaps) {
+      if (s.state != SubmapState::kActive) continue;
+      for (const Eigen::Vector3d& p : s.points) {
+        const Eigen::Vector3d q = s.T_map_submap * p;
+        // The car's sides are axis-aligned in the world; the map frame is the first pose's.
+        const Eigen::Vector3d local = (T_map_world.linear().transpose() * (q - c));
+        n += std::abs(local.x()) < 2.4 && std::abs(local.y()) < 1.1 && local.z() > -0.6 &&
+             local.z() < 0.95;
+      }
+    }
+    return n;
+  }
+
+  test::VehicleTrajectory trajectory_;
+  test::SyntheticScene scene_;
+  test::SyntheticScene scene_with_car_;
+};
+
+TEST_F(SessionMergerTest, MergesAReversedSessionRemovesTheCarAndDoesNotGrow) {
+  StatusOr<SessionMerger> merger = SessionMerger::Create(SessionMergerConfig());
+  ASSERT_TRUE(merger.ok()) << merger.status().message();
+  MapContents map;
+
+  // Session 1 defines the map frame.
+  Mapped first = MapSession(0, scene_with_car_, "s00", nullptr);
+  StatusOr<MergeReport> r1 =
+      merger.value().Merge(first.result, Record("s00"), *first.recognizer, SessionFiles(), &map);
+  ASSERT_TRUE(r1.ok()) << r1.status().message();
+  EXPECT_TRUE(r1.value().first_session);
+  EXPECT_EQ(map.sessions.size(), 1u);
+  ASSERT_TRUE(map.files.count("database/descriptors.bin"));
+  EXPECT_TRUE(map.files.count("changes/s00.yaml"));
+  const std::size_t car_before = PointsOnCar(map);
+  ASSERT_GT(car_before, 30u) << "the car must be in the first session's map";
+  const std::size_t points_before = ActivePoints(map);
+
+  // Session 2: the other way round, one day later, without the car.
+  Mapped second = MapSession(1, scene_, "s01", DatabaseOf(map), 0.0, 86400.0);
+  StatusOr<MergeReport> r2 =
+      merger.value().Merge(second.result, Record("s01"), *second.recognizer, SessionFiles(), &map);
+  ASSERT_TRUE(r2.ok()) << r2.status().message();
+  const MergeReport& report = r2.value();
+  EXPECT_FALSE(report.first_session);
+  EXPECT_GE(report.inter_loops, 2u);
+  EXPECT_EQ(map.sessions.size(), 2u);
+
+  // Every accepted inter-session loop is right (truth known here, never to the merger).
+  for (const LoopRecord& loop : report.loops) {
+    if (loop.kind == LoopKind::kIntra || loop.status != LoopStatus::kAccepted) continue;
+    const Submap* history = nullptr;
+    const Submap* current = nullptr;
+    for (const Submap& s : first.result.submaps) {
+      if (s.id == loop.history_submap) history = &s;
+    }
+    for (const Submap& s : second.result.submaps) {
+      if (s.id == loop.current_submap) current = &s;
+    }
+    ASSERT_TRUE(history && current);
+    const Pose3 truth = se3::Between(Truth(0, history->first_stamp_s()),
+                                     Truth(1, current->first_stamp_s() - 86400.0));
+    const Pose3 error = se3::Between(truth, loop.T_history_current);
+    EXPECT_LT(se3::TranslationNorm(error), 0.3) << LoopKindName(loop.kind);
+    EXPECT_LT(se3::RotationAngleRad(error), 1.0 * M_PI / 180.0) << LoopKindName(loop.kind);
+  }
+
+  // The second session lies in the map frame: its trajectory against the truth.
+  const Pose3 T_map_world = Truth(0, 0.0).inverse();
+  double sum_sq = 0.0;
+  const Trajectory& t2 = map.trajectories.at("s01");
+  for (const StampedPose& sp : t2) {
+    const Pose3 truth = T_map_world * Truth(1, sp.stamp_s - 86400.0);
+    sum_sq += (sp.pose.translation() - truth.translation()).squaredNorm();
+  }
+  const double ate = std::sqrt(sum_sq / t2.size());
+  EXPECT_LT(ate, 0.15) << "ATE RMSE of the merged session " << ate << " m";
+
+  // The car left: its points are gone, and what was removed was mostly the car.
+  const std::size_t car_after = PointsOnCar(map);
+  EXPECT_LT(car_after, car_before / 5) << car_before << " car points before, " << car_after
+                                       << " after";
+  EXPECT_GT(report.points_removed, 0u);
+  // Driven the other way, the street shows the boxes' other sides: the map may grow by those
+  // views, but the new submaps are fused into the history ones, not added beside them.
+  EXPECT_GT(report.submaps_fused, 0u);
+  EXPECT_TRUE(map.files.count("changes/s01.yaml"));
+  EXPECT_TRUE(map.files.count("loops/s01.csv"));
+  EXPECT_LT(ActivePoints(map), points_before * 2);
+
+  // Session 3 repeats session 1's drive without the car: nothing new to see, so the map must
+  // not grow (a place visited every day keeps its size).
+  const std::size_t points_after_two = ActivePoints(map);
+  const std::size_t submaps_after_two = map.submaps.size();
+  Mapped third = MapSession(0, scene_, "s02", DatabaseOf(map), 0.0, 2 * 86400.0);
+  StatusOr<MergeReport> r3 =
+      merger.value().Merge(third.result, Record("s02"), *third.recognizer, SessionFiles(), &map);
+  ASSERT_TRUE(r3.ok()) << r3.status().message();
+  EXPECT_LT(ActivePoints(map), points_after_two * 105 / 100)
+      << points_after_two << " points after two sessions, " << ActivePoints(map) << " after three";
+  EXPECT_EQ(r3.value().submaps_added, 0u) << "every submap of a repeated drive is fused";
+  EXPECT_GT(map.submaps.size(), submaps_after_two);  // kept for the record, as fused
+  EXPECT_LE(PointsOnCar(map), car_after + 5);
+}
+
+TEST_F(SessionMergerTest, ASessionElsewhereIsRefusedAndTheMapIsUnchanged) {
+  StatusOr<SessionMerger> merger = SessionMerger::Create(SessionMergerConfig());
+  ASSERT_TRUE(merger.ok());
+  MapContents map;
+  Mapped first = MapSession(0, scene_, "s00", nullptr);
+  ASSERT_TRUE(
+      merger.value().Merge(first.result, Record("s00"), *first.recognizer, SessionFiles(), &map)
+          .ok());
+  const std::size_t submaps = map.submaps.size();
+  const std::size_t points = ActivePoints(map);
+  const std::string database = map.files.at("database/descriptors.bin");
+
+  // Another street: different boxes, nothing in common with the map.
+  const test::SyntheticScene elsewhere(99, 70, 60.0, trajectory_.PathXy(0.25), 3.0);
+  Mapped other = MapSession(0, elsewhere, "s01", DatabaseOf(map));
+  StatusOr<MergeReport> merged =
+      merger.value().Merge(other.result, Record("s01"), *other.recognizer, SessionFiles(), &map);
+  ASSERT_FALSE(merged.ok());
+  EXPECT_NE(merged.status().message().find("could not be aligned"), std::string::npos)
+      << merged.status().message();
+  EXPECT_EQ(map.sessions.size(), 1u);
+  EXPECT_EQ(map.submaps.size(), submaps);
+  EXPECT_EQ(ActivePoints(map), points);
+  EXPECT_EQ(map.files.at("database/descriptors.bin"), database);
+
+  // A session name the map already has is refused before anything happens.
+  StatusOr<MergeReport> again =
+      merger.value().Merge(first.result, Record("s00"), *first.recognizer, SessionFiles(), &map);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.status().message().find("already has a session"), std::string::npos);
+}
+
+TEST(SessionMergerConfig, InvalidValuesAreRefused) {
+  SessionMergerConfig config;
+  EXPECT_TRUE(config.Validate().ok()) << config.Validate().message();
+  config.fusion.min_overlap_ratio = 1.5;
+  EXPECT_FALSE(SessionMerger::Create(config).ok());
+  config = SessionMergerConfig();
+  config.proximity.search_radius_m = -1.0;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SessionMergerConfig();
+  config.num_threads = 0;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SessionMergerConfig();
+  config.fusion.max_dynamic_fraction = 0.0;
+  EXPECT_FALSE(config.Validate().ok());
+}
+
+}  // namespace
+}  // namespace core
+}  // namespace multisession_mapper
