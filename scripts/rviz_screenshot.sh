@@ -2,8 +2,9 @@
 # Screenshot of RViz (rviz/mapping.rviz) showing a stored map directory: starts Xvfb and a
 # private roscore, publishes the map's cloud, submaps, loop candidates (loops/<session>.csv)
 # and removed/mended dynamic points (dynamics/) with scripts/rviz_publish_map.py, and writes a
-# PNG of the screen. The view is centred on the map's submap origins.
-#   scripts/rviz_screenshot.sh --map DIR [--out PNG] [--wait SECONDS]
+# PNG of the screen. The view is centred on the map's trajectories.
+#   scripts/rviz_screenshot.sh --map DIR [--out PNG] [--wait SECONDS] [--small]
+#   (--small: 64-colour PNG, about 250 KB, for docs/images)
 #   scripts/rviz_screenshot.sh --synthetic [--out PNG]
 # Needs a built workspace (scripts/build.sh; MSM_WS selects it).
 set -euo pipefail
@@ -13,13 +14,15 @@ map=""
 synthetic=0
 out="${MSM_REPO}/demo_output/rviz_mapping.png"
 wait_s=20
+small=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --map) map="$2"; shift 2 ;;
     --synthetic) synthetic=1; shift ;;
     --out) out="$2"; shift 2 ;;
     --wait) wait_s="$2"; shift 2 ;;
-    -h|--help) sed -n '2,8p' "$0"; exit 0 ;;
+    --small) small=1; shift ;;
+    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
     *) msm_die "unknown argument '$1' (see --help)" ;;
   esac
 done
@@ -60,20 +63,28 @@ msm_source_workspace
 port="$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
 export ROS_MASTER_URI="http://localhost:${port}"
 
-# The view: centred on the submap origins, far enough to see all of them.
+# The view: centred on the trajectories, far enough to see all of them.
 config="${tmp}/mapping.rviz"
 /usr/bin/python3 - "${MSM_REPO}/rviz/mapping.rviz" "${config}" "${map}" <<'EOF'
 import os, sys, yaml
 source, target, map_dir = sys.argv[1:4]
 config = yaml.safe_load(open(source))
 if map_dir:
-    origins = [s['origin'][:3] for s in yaml.safe_load(open(map_dir + '/manifest.yaml'))['submaps']]
-    lo = [min(o[i] for o in origins) for i in range(3)]
-    hi = [max(o[i] for o in origins) for i in range(3)]
+    # Extent of the trajectories (the submap origins when there is none).
+    points = [s['origin'][:3] for s in yaml.safe_load(open(map_dir + '/manifest.yaml'))['submaps']]
+    folder = map_dir + '/trajectories'
+    for name in os.listdir(folder) if os.path.isdir(folder) else []:
+        if name.endswith('.tum') and not name.endswith('_odom.tum'):
+            for line in open(os.path.join(folder, name)):
+                values = line.split()
+                if len(values) == 8 and not line.startswith('#'):
+                    points.append([float(v) for v in values[1:4]])
+    lo = [min(o[i] for o in points) for i in range(3)]
+    hi = [max(o[i] for o in points) for i in range(3)]
     view = config['Visualization Manager']['Views']['Current']
     view['Focal Point'] = {'X': (lo[0] + hi[0]) / 2, 'Y': (lo[1] + hi[1]) / 2, 'Z': lo[2]}
     extent = max(hi[0] - lo[0], hi[1] - lo[1])
-    view['Distance'] = max(40.0, 1.6 * extent)
+    view['Distance'] = max(40.0, 1.5 * extent)
     view['Pitch'] = 1.2
     # Hundreds of loops: labels and rejected loops would hide the map and the accepted loops.
     num_loops = 0
@@ -118,4 +129,7 @@ sleep "${wait_s}"
 grep -E "PluginlibFactory|Failed to load" "${tmp}/rviz.log" >&2 && msm_die "rviz could not load a plugin"
 grep -h "published" "${tmp}/publisher.log" >&2 || msm_log "warning: the publisher has not published yet"
 import -window root "${out}"
+if [ ${small} -eq 1 ]; then
+  convert "${out}" -colors 64 -define png:compression-level=9 "${out}.tmp.png" && mv "${out}.tmp.png" "${out}"
+fi
 msm_log "screenshot: ${out} ($(du -k "${out}" | cut -f1) KB)"

@@ -54,17 +54,17 @@ std::map<std::string, std::string> Snapshot(const fs::path& dir) {
   return files;
 }
 
-struct Run {
+struct MapperRun {
   int exit_code = -1;
   std::string log;  // stderr and stdout
 };
 
-Run RunMapper(const std::string& bag, const std::string& map, const std::string& extra = "") {
+MapperRun RunMapper(const std::string& bag, const std::string& map, const std::string& extra = "") {
   const std::string log = kTmp + "/last_run.log";
   const std::string cmd =
       kMapper + " --bag " + bag + " --map " + map + " --quiet " + extra + " > " + log + " 2>&1";
   const int status = std::system(cmd.c_str());
-  Run run;
+  MapperRun run;
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   run.log = ReadText(log);
   return run;
@@ -89,7 +89,7 @@ class OfflineMapperBadInputTest : public ::testing::Test {
     }
     ASSERT_EQ(clouds_->size(), static_cast<std::size_t>(kScans));
     // The existing map that failing runs must leave untouched.
-    const Run first = RunMapper(kTmp + "/sim/s00.bag", kTmp + "/existing_map", "--max-scans 20");
+    const MapperRun first = RunMapper(kTmp + "/sim/s00.bag", kTmp + "/existing_map", "--max-scans 20");
     ASSERT_EQ(first.exit_code, 0) << first.log;
   }
 
@@ -113,7 +113,7 @@ class OfflineMapperBadInputTest : public ::testing::Test {
   }
 
   // Runs the mapper on `bag` into a new map directory; returns the run.
-  static Run MapInto(const std::string& bag, const std::string& map_name) {
+  static MapperRun MapInto(const std::string& bag, const std::string& map_name) {
     fs::remove_all(kTmp + "/" + map_name);
     return RunMapper(bag, kTmp + "/" + map_name);
   }
@@ -126,7 +126,7 @@ class OfflineMapperBadInputTest : public ::testing::Test {
     fs::copy(kTmp + "/existing_map", map, fs::copy_options::recursive);
     const auto before = Snapshot(map);
     ASSERT_FALSE(before.empty());
-    const Run run = RunMapper(bag, map);
+    const MapperRun run = RunMapper(bag, map);
     EXPECT_NE(run.exit_code, 0) << run.log;
     EXPECT_TRUE(Snapshot(map) == before) << "the existing map was modified by a failing run";
     EXPECT_FALSE(fs::exists(map + ".new")) << "a failing run left a partial save";
@@ -173,7 +173,7 @@ std::size_t CountOccurrences(const std::string& text, const std::string& what) {
 }
 
 TEST_F(OfflineMapperBadInputTest, CleanBagMapsEveryScan) {
-  const Run run = MapInto(WriteBag("clean", Clouds()), "clean_map");
+  const MapperRun run = MapInto(WriteBag("clean", Clouds()), "clean_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   const core::MapContents map = LoadMap("clean_map");
   ASSERT_EQ(map.sessions.size(), 1u);
@@ -183,7 +183,7 @@ TEST_F(OfflineMapperBadInputTest, CleanBagMapsEveryScan) {
 TEST_F(OfflineMapperBadInputTest, EmptyCloudsAreSkippedWithAMessage) {
   std::vector<PointCloud2> clouds = Clouds();
   for (int i = 3; i < kScans; i += 10) clouds[i] = EmptyLike(clouds[i]);  // 4 empty scans
-  const Run run = MapInto(WriteBag("some_empty", clouds), "some_empty_map");
+  const MapperRun run = MapInto(WriteBag("some_empty", clouds), "some_empty_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   EXPECT_EQ(CountOccurrences(run.log, "survived the input filter"), 4u) << run.log;
   EXPECT_NE(run.log.find("scan 3 skipped"), std::string::npos) << run.log;
@@ -194,7 +194,7 @@ TEST_F(OfflineMapperBadInputTest, OnlyEmptyCloudsStopWithAnErrorAndWriteNoMap) {
   std::vector<PointCloud2> clouds = Clouds();
   for (PointCloud2& cloud : clouds) cloud = EmptyLike(cloud);
   const std::string bag = WriteBag("all_empty", clouds);
-  const Run run = MapInto(bag, "all_empty_map");
+  const MapperRun run = MapInto(bag, "all_empty_map");
   EXPECT_EQ(run.exit_code, 1) << run.log;
   EXPECT_NE(run.log.find("produced no submap (no usable scan)"), std::string::npos) << run.log;
   EXPECT_FALSE(fs::exists(kTmp + "/all_empty_map/manifest.yaml"));
@@ -207,7 +207,7 @@ TEST_F(OfflineMapperBadInputTest, AllNaNCloudsAreSkippedAndNaNPointsDropped) {
   // A few NaN points in an otherwise good scan are just dropped.
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(&clouds[8].data[0], &nan, sizeof(float));
-  const Run run = MapInto(WriteBag("some_nan", clouds), "some_nan_map");
+  const MapperRun run = MapInto(WriteBag("some_nan", clouds), "some_nan_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   EXPECT_EQ(CountOccurrences(run.log, "survived the input filter"), 4u) << run.log;
   EXPECT_NE(run.log.find("scan 5 skipped"), std::string::npos) << run.log;
@@ -222,7 +222,7 @@ TEST_F(OfflineMapperBadInputTest, OnlyNaNCloudsStopWithAnError) {
   std::vector<PointCloud2> clouds = Clouds();
   for (PointCloud2& cloud : clouds) cloud = AllNaN(cloud);
   const std::string bag = WriteBag("all_nan", clouds);
-  const Run run = MapInto(bag, "all_nan_map");
+  const MapperRun run = MapInto(bag, "all_nan_map");
   EXPECT_EQ(run.exit_code, 1) << run.log;
   EXPECT_NE(run.log.find("produced no submap"), std::string::npos) << run.log;
   EXPECT_FALSE(fs::exists(kTmp + "/all_nan_map/manifest.yaml"));
@@ -236,7 +236,7 @@ TEST_F(OfflineMapperBadInputTest, CloudsWithoutRingAndTimeAreMappedWithoutDeskew
       if (field.name == "ring" || field.name == "time") field.name += "_removed";
     }
   }
-  const Run run = MapInto(WriteBag("no_ring_time", clouds), "no_ring_time_map");
+  const MapperRun run = MapInto(WriteBag("no_ring_time", clouds), "no_ring_time_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   EXPECT_EQ(run.log.find("skipped:"), std::string::npos) << run.log;
   EXPECT_EQ(LoadMap("no_ring_time_map").sessions.at(0).scans, static_cast<std::uint32_t>(kScans));
@@ -246,7 +246,7 @@ TEST_F(OfflineMapperBadInputTest, ScansInAnotherFrameAreSkipped) {
   std::vector<PointCloud2> clouds = Clouds();
   clouds[10].header.frame_id = "base_link";
   clouds[20].header.frame_id = "";
-  const Run run = MapInto(WriteBag("wrong_frame", clouds), "wrong_frame_map");
+  const MapperRun run = MapInto(WriteBag("wrong_frame", clouds), "wrong_frame_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   EXPECT_NE(run.log.find("scan 10 skipped: frame_id 'base_link' differs from the sensor frame '" +
                          clouds[0].header.frame_id + "'"),
@@ -261,7 +261,7 @@ TEST_F(OfflineMapperBadInputTest, StampsGoingBackwardsAreSkipped) {
   // Bag order kept; the header stamps of scans 12 and 13 lie before scan 11.
   clouds[12].header.stamp = clouds[9].header.stamp;
   clouds[13].header.stamp = clouds[10].header.stamp;
-  const Run run = MapInto(WriteBag("backwards", clouds), "backwards_map");
+  const MapperRun run = MapInto(WriteBag("backwards", clouds), "backwards_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   EXPECT_NE(run.log.find("scan 12 skipped: odometry: scan stamp"), std::string::npos) << run.log;
   EXPECT_NE(run.log.find("scan 13 skipped"), std::string::npos) << run.log;
@@ -273,7 +273,7 @@ TEST_F(OfflineMapperBadInputTest, DuplicatedStampsAreSkipped) {
   std::vector<PointCloud2> clouds = Clouds();
   clouds.insert(clouds.begin() + 15, clouds[14]);  // the same scan twice
   clouds.insert(clouds.begin() + 30, clouds[29]);
-  const Run run = MapInto(WriteBag("duplicated", clouds), "duplicated_map");
+  const MapperRun run = MapInto(WriteBag("duplicated", clouds), "duplicated_map");
   ASSERT_EQ(run.exit_code, 0) << run.log;
   EXPECT_NE(run.log.find("scan 15 skipped"), std::string::npos) << run.log;
   EXPECT_NE(run.log.find("scan 30 skipped"), std::string::npos) << run.log;
@@ -283,7 +283,7 @@ TEST_F(OfflineMapperBadInputTest, DuplicatedStampsAreSkipped) {
 
 TEST_F(OfflineMapperBadInputTest, TopicMissingNamesTheTopicsThatExist) {
   const std::string bag = WriteBag("other_topic", Clouds(), "/points_raw");
-  const Run run = MapInto(bag, "other_topic_map");
+  const MapperRun run = MapInto(bag, "other_topic_map");
   EXPECT_EQ(run.exit_code, 1) << run.log;
   EXPECT_NE(run.log.find("has no topic '/velodyne_points'; its topics are:\n  /points_raw "
                          "[sensor_msgs/PointCloud2]"),
@@ -302,7 +302,7 @@ TEST_F(OfflineMapperBadInputTest, TopicOfAnotherTypeIsRefused) {
     text.data = "not a point cloud";
     for (int i = 0; i < 3; ++i) bag.write(kTopic, ros::Time(1000.0 + i), text);
   }
-  const Run run = MapInto(path, "string_topic_map");
+  const MapperRun run = MapInto(path, "string_topic_map");
   EXPECT_EQ(run.exit_code, 1) << run.log;
   EXPECT_NE(run.log.find("carries std_msgs/String, expected sensor_msgs/PointCloud2"),
             std::string::npos)
@@ -317,7 +317,7 @@ TEST_F(OfflineMapperBadInputTest, TruncatedBagStopsWithAnErrorAndWritesNoMap) {
     const std::string name = "truncated_" + std::to_string(static_cast<int>(fraction * 100));
     const std::string path = kTmp + "/" + name + ".bag";
     std::ofstream(path, std::ios::binary) << full.substr(0, static_cast<std::size_t>(full.size() * fraction));
-    const Run run = MapInto(path, name + "_map");
+    const MapperRun run = MapInto(path, name + "_map");
     EXPECT_EQ(run.exit_code, 1) << run.log;
     EXPECT_NE(run.log.find("bag '" + path + "'"), std::string::npos) << run.log;
     EXPECT_FALSE(fs::exists(kTmp + "/" + name + "_map/manifest.yaml"));
@@ -333,7 +333,7 @@ TEST_F(OfflineMapperBadInputTest, CorruptMessageDataStopsWithAnError) {
   for (std::size_t i = 0; i < 4096; ++i) bytes[middle + i] = static_cast<char>(0xff);
   const std::string path = kTmp + "/corrupt.bag";
   std::ofstream(path, std::ios::binary) << bytes;
-  const Run run = MapInto(path, "corrupt_map");
+  const MapperRun run = MapInto(path, "corrupt_map");
   EXPECT_NE(run.exit_code, 0) << run.log;
   EXPECT_NE(run.log.find("bag '" + path + "'"), std::string::npos) << run.log;
   EXPECT_FALSE(fs::exists(kTmp + "/corrupt_map/manifest.yaml"));
@@ -343,7 +343,7 @@ TEST_F(OfflineMapperBadInputTest, CorruptMessageDataStopsWithAnError) {
 TEST_F(OfflineMapperBadInputTest, NotABagIsRefused) {
   const std::string path = kTmp + "/not_a_bag.bag";
   std::ofstream(path) << "this is not a rosbag\n";
-  const Run run = MapInto(path, "not_a_bag_map");
+  const MapperRun run = MapInto(path, "not_a_bag_map");
   EXPECT_EQ(run.exit_code, 1) << run.log;
   EXPECT_NE(run.log.find("cannot read bag '" + path + "'"), std::string::npos) << run.log;
   EXPECT_FALSE(fs::exists(kTmp + "/not_a_bag_map"));

@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <ctime>
 #include <deque>
 #include <limits>
 #include <memory>
@@ -134,7 +132,22 @@ class PairDetection {
       side.normals.assign(n, Eigen::Vector3f::Zero());
       // Distances beyond this are only compared against smaller thresholds: stay "far".
       const double reach = std::max(config_.seed_distance_m, config_.mending_distance_m);
+      // Points out of the other session's range are not examined: marked common (never
+      // dynamic, no queries) and close to the other (never mended).
+      const double range_sq = config_.max_range_m * config_.max_range_m;
       for (std::size_t i = 0; i < n; ++i) {
+        bool in_range = false;
+        for (const Eigen::Vector3d& o : sides_[1 - s].origins) {
+          if ((o - side.points[i]).squaredNorm() <= range_sq) {
+            in_range = true;
+            break;
+          }
+        }
+        if (!in_range) {
+          side.common[i] = 1;
+          side.nearest_other_m[i] = 0.0f;
+          continue;
+        }
         std::uint32_t j = 0;
         double d2 = 0.0;
         if (other.NearestWithin(side.points[i], reach, &j, &d2)) {
@@ -257,19 +270,8 @@ class PairDetection {
     std::vector<std::uint8_t> dynamic(side.points.size(), 0);
     for (std::uint32_t i : current_dynamic) dynamic[i] = 1;
     std::vector<std::uint32_t> mending;
-    const double reach_sq = config_.max_ray_length_m * config_.max_ray_length_m;
     for (std::size_t i = 0; i < side.points.size(); ++i) {
       if (dynamic[i] || side.nearest_other_m[i] <= config_.mending_distance_m) continue;
-      // Only within the history's own reach: farther parts are the current session's news,
-      // not holes in the history submap.
-      bool in_reach = false;
-      for (const Eigen::Vector3d& o : sides_[kHistory].origins) {
-        if ((o - side.points[i]).squaredNorm() <= reach_sq) {
-          in_reach = true;
-          break;
-        }
-      }
-      if (!in_reach) continue;
       const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(side.points[i]));
       if (cell != nullptr && cell->count[kHistory] >= config_.min_passing_rays) continue;
       mending.push_back(static_cast<std::uint32_t>(i));
@@ -384,7 +386,8 @@ class PairDetection {
           margin = std::min(config_.max_end_margin_m,
                             config_.end_margin_m / std::max(sin_elevation, 1e-3));
         }
-        const double free_until = length - margin;
+        // Beyond max_range_m from the origin no voxel is examined.
+        const double free_until = std::min(length - margin, config_.max_range_m);
         if (free_until <= origin_clearance_m) continue;
         bool relevant = false;
         coarse_->Traverse(o, p, [&](RayVoxelGrid::Cell* cell, double entry_m) {
@@ -439,6 +442,7 @@ Status DynamicDetectionConfig::Validate() const {
         {"voxel_size_m", voxel_size_m},
         {"origin_spacing_m", origin_spacing_m},
         {"max_ray_length_m", max_ray_length_m},
+        {"max_range_m", max_range_m},
         {"end_margin_m", end_margin_m},
         {"max_end_margin_m", max_end_margin_m},
         {"support_radius_m", support_radius_m},
@@ -512,26 +516,13 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   const PointIndex indices[2] = {std::move(history_index.value()),
                                  std::move(current_index.value())};
 
-#ifdef MSM_DYN_PROFILE
-  auto lap = [t = std::clock()](const char* what) mutable {
-    const std::clock_t now = std::clock();
-    std::fprintf(stderr, "  %s %.1f ms cpu\n", what, 1000.0 * (now - t) / CLOCKS_PER_SEC);
-    t = now;
-  };
-#else
-  auto lap = [](const char*) {};
-#endif
   PairDetection pair(config_, sides, indices);
-  lap("index");
   pair.EstimateGround();
   pair.FindCommonParts();
-  lap("common");
   const Status cast = pair.CastRays();
   if (!cast.ok()) return cast;
-  lap("rays");
   result.history_dynamic = pair.DetectDynamic(kHistory);
   result.current_dynamic = pair.DetectDynamic(kCurrent);
-  lap("dynamic");
   result.current_mending = pair.Mending(result.current_dynamic);
   result.time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -400,6 +400,13 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
     if (!s.ok()) return s;
     if (crash_hook()) return kAborted;
   }
+  for (const auto& [rel, points] : contents.clouds) {
+    if (!SafeRelativePath(rel)) return Status::Error("invalid cloud file name '" + rel + "'");
+    Status s = WritePcd(fresh / rel, points);
+    if (!s.ok()) return s;
+    written.push_back(rel);
+    if (crash_hook()) return kAborted;
+  }
   if (fs::exists(current / kManifest, ec)) {
     StatusOr<std::string> old_manifest = ReadWholeFile(current / kManifest);
     if (old_manifest.ok()) {

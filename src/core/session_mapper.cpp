@@ -300,15 +300,9 @@ StatusOr<SessionResult> SessionMapper::Finish() {
   result.session = st.session;
   for (Submap& submap : st.submaps) {
     submap.T_map_submap = st.graph.NodePose(submap.id);
-    for (const SubmapScanRecord& scan : submap.scans) {
-      StampedPose sp;
-      sp.stamp_s = scan.stamp_s;
-      sp.pose = submap.T_map_submap * scan.T_submap_sensor;
-      result.trajectory.push_back(sp);
-    }
+    AppendScanPoses(submap, &result.trajectory);
   }
-  std::sort(result.trajectory.begin(), result.trajectory.end(),
-            [](const StampedPose& a, const StampedPose& b) { return a.stamp_s < b.stamp_s; });
+  SortTrajectory(&result.trajectory);
   result.submaps = std::move(st.submaps);
   result.graph = st.graph;
   result.odometry = st.split ? st.split_odometry : st.odometry.trajectory();

@@ -666,6 +666,13 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     map->files["place_recognition/" + record.name + ".csv"] = files.place_recognition_csv;
   }
   map->files[kDatabaseFile] = std::move(database_bytes.value());
+  PointVector all_removed, all_mended;
+  for (const SubmapChange& c : report.changes) {
+    all_removed.insert(all_removed.end(), c.removed_m.begin(), c.removed_m.end());
+    all_mended.insert(all_mended.end(), c.mended_m.begin(), c.mended_m.end());
+  }
+  map->clouds["dynamics/" + record.name + "_removed.pcd"] = std::move(all_removed);
+  map->clouds["dynamics/" + record.name + "_mended.pcd"] = std::move(all_mended);
   report.update_s = SecondsSince(update_start);
   report.total_s = SecondsSince(start);
   report.points_fused = fusion_points;

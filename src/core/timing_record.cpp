@@ -48,7 +48,15 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   Emit(&out, "intra_loop", timings.intra_loop_s);
   Emit(&out, "optimisation", timings.optimisation_s);
   out << YAML::EndMap;
+  out << YAML::Key << "per_pair_s" << YAML::Value << YAML::BeginMap;
+  Emit(&out, "global_registration", timings.global_registration_s);
+  Emit(&out, "dynamic_detection", timings.dynamic_detection_s);
+  out << YAML::EndMap;
   out << YAML::Key << "merge_s" << YAML::Value << run.merge_s;
+  out << YAML::Key << "merge_stages_s" << YAML::Value << YAML::Flow << YAML::BeginMap
+      << YAML::Key << "matching" << YAML::Value << run.merge_matching_s << YAML::Key
+      << "optimisation" << YAML::Value << run.merge_optimisation_s << YAML::Key << "update"
+      << YAML::Value << run.merge_update_s << YAML::EndMap;
   out << YAML::EndMap;
   return std::string(out.c_str()) + "\n";
 }

@@ -1,5 +1,7 @@
 #include "loop_candidates_display.h"
 
+#include <algorithm>
+
 #include <OgreSceneManager.h>
 #include <OgreSceneNode.h>
 

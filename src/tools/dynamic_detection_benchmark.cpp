@@ -25,6 +25,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <map>
 #include <set>
@@ -52,8 +53,15 @@ const char kUsage[] =
     "  --voxel M          detector voxel size (default of DynamicDetectionConfig)\n"
     "  --max-pairs N      evaluate at most N pairs (0: all)\n"
     "  --align submap|start   truth alignment per submap (default) or per session start\n"
+    "  --eval-range M     score only points within M of a scan origin of the other submap of a\n"
+    "                     pair (25 = the detector's max_range_m; 0: every paired point)\n"
+    "  --per-object       list the vacated low-dynamic objects with their removed points\n"
     "  --compare-octomap  time OctoMap key lookups against the own voxel grid on the same rays\n"
-    "  --json FILE        also write the figures as JSON\n";
+    "  --json FILE        also write the figures as JSON\n"
+    "  --set KEY=VALUE    override a detector parameter (seed_distance_m, support_radius_m,\n"
+    "                     min_passing_rays, max_support_points, min_cluster_points,\n"
+    "                     min_cluster_coarse_points, max_range_m, end_margin_m, rays_per_point,\n"
+    "                     origin_spacing_m, dynamic_grow_radius_m, mending_distance_m)\n";
 
 constexpr int kCanopy = 6;
 constexpr int kMovingCar = 9;
@@ -190,15 +198,26 @@ core::StatusOr<SessionData> LoadSession(const std::string& map_dir, const std::s
       T_world_submap = TruthAt(truth.value(), submap.scans.front().stamp_s) *
                        submap.scans.front().T_submap_sensor.inverse();
     }
+    std::vector<double> distances;
     std::vector<std::uint8_t> point_labels(submap.points.size(), 255);
     std::vector<std::uint32_t> point_objects(submap.points.size(), 0);
     for (std::size_t i = 0; i < submap.points.size(); ++i) {
       std::uint32_t j = 0;
       double d2 = 0.0;
-      if (index.value().Nearest(T_world_submap * submap.points[i], &j, &d2) && d2 <= 0.09) {
+      if (index.value().Nearest(T_world_submap * submap.points[i], &j, &d2)) {
+        distances.push_back(std::sqrt(d2));
+      }
+      if (d2 <= 0.09) {
         point_labels[i] = labels.value().labels[j];
         point_objects[i] = labels.value().object_ids[j];
       }
+    }
+    std::sort(distances.begin(), distances.end());
+    if (!distances.empty()) {
+      std::printf("  %s/%u: %zu points, %zu scans, distance to the truth points: median %.3f m, "
+                  "90 %% %.3f m\n",
+                  name.c_str(), submap.id, submap.points.size(), submap.scans.size(),
+                  distances[distances.size() / 2], distances[distances.size() * 9 / 10]);
     }
     data.submaps.push_back(submap);
     data.T_world_submap.push_back(T_world_submap);
@@ -275,10 +294,12 @@ void CompareOctomap(const core::Submap& submap, double voxel_m) {
 int main(int argc, char** argv) {
   std::string sim_dir, history_map, current_map, history_name = "s00", current_name = "s01";
   std::string align = "submap";
-  double pair_radius = 15.0, voxel = 0.0;
+  double pair_radius = 15.0, voxel = 0.0, eval_range = 25.0;
   long long max_pairs = 0;
   bool compare_octomap = false;
+  bool per_object = false;
   std::string json_path;
+  std::vector<std::pair<std::string, double>> overrides;
   std::string json = "{";
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -296,10 +317,18 @@ int main(int argc, char** argv) {
     else if (arg == "--current") ok = next(&current_name);
     else if (arg == "--align") ok = next(&align) && (align == "submap" || align == "start");
     else if (arg == "--pair-radius") ok = next(&value) && msm::tools::ParseDouble(value, &pair_radius);
+    else if (arg == "--eval-range") ok = next(&value) && msm::tools::ParseDouble(value, &eval_range);
     else if (arg == "--voxel") ok = next(&value) && msm::tools::ParseDouble(value, &voxel);
     else if (arg == "--max-pairs") ok = next(&value) && msm::tools::ParseInt(value, &max_pairs);
     else if (arg == "--compare-octomap") compare_octomap = true;
+    else if (arg == "--per-object") per_object = true;
     else if (arg == "--json") ok = next(&json_path);
+    else if (arg == "--set") {
+      double v = 0.0;
+      ok = next(&value) && value.find('=') != std::string::npos &&
+           msm::tools::ParseDouble(value.substr(value.find('=') + 1), &v);
+      if (ok) overrides.emplace_back(value.substr(0, value.find('=')), v);
+    }
     else ok = false;
     if (!ok) {
       std::fprintf(stderr, "dynamic_detection_benchmark: bad argument %s\n%s", arg.c_str(), kUsage);
@@ -345,6 +374,24 @@ int main(int argc, char** argv) {
     return it->second.sessions.count(H.name) != it->second.sessions.count(C.name);
   };
 
+  // A low-dynamic object whose place holds another parked car / movable object of the session
+  // it is absent from ("replaced"): free-space evidence only exists where the shapes differ.
+  auto replaced = [&](std::uint32_t object_id) {
+    const WorldObject& x = objects[object_id];
+    const std::string& absent_from = x.sessions.count(H.name) ? C.name : H.name;
+    for (const auto& [id, y] : objects) {
+      if (id == object_id || (y.cls != "parked_car" && y.cls != "movable")) continue;
+      if (!y.sessions.empty() && !y.sessions.count(absent_from)) continue;
+      if (std::hypot(y.pose[0] - x.pose[0], y.pose[1] - x.pose[1]) < 2.5) return true;
+    }
+    return false;
+  };
+  std::map<std::uint32_t, bool> replaced_cache;
+  auto is_replaced = [&](std::uint32_t id) {
+    auto it = replaced_cache.find(id);
+    if (it == replaced_cache.end()) it = replaced_cache.emplace(id, replaced(id)).first;
+    return it->second;
+  };
   std::vector<std::pair<std::size_t, std::size_t>> pairs;
   for (std::size_t h = 0; h < H.submaps.size(); ++h) {
     for (std::size_t c = 0; c < C.submaps.size(); ++c) {
@@ -359,9 +406,11 @@ int main(int argc, char** argv) {
   for (const auto& s : H.submaps) h_points += s.points.size();
   for (const auto& s : C.submaps) c_points += s.points.size();
   std::printf("sessions %s (%zu submaps, %zu points) / %s (%zu submaps, %zu points), %zu pairs "
-              "within %.1f m, alignment: truth per %s\n",
+              "within %.1f m, alignment: truth per %s, scored within %.1f m of the other "
+              "submap's scan origins (0: all)\n",
               H.name.c_str(), H.submaps.size(), h_points, C.name.c_str(), C.submaps.size(),
-              c_points, pairs.size(), pair_radius, per_submap ? "submap" : "session start");
+              c_points, pairs.size(), pair_radius, per_submap ? "submap" : "session start",
+              eval_range);
   if (compare_octomap && !pairs.empty()) {
     const double v = voxel > 0.0 ? voxel : core::DynamicDetectionConfig().voxel_size_m;
     CompareOctomap(H.submaps[pairs.front().first], v);
@@ -372,6 +421,24 @@ int main(int argc, char** argv) {
     core::DynamicDetectionConfig config;
     config.height_guard_enabled = guard;
     if (voxel > 0.0) config.voxel_size_m = voxel;
+    for (const auto& [key, v] : overrides) {
+      if (key == "seed_distance_m") config.seed_distance_m = v;
+      else if (key == "support_radius_m") config.support_radius_m = v;
+      else if (key == "min_passing_rays") config.min_passing_rays = static_cast<int>(v);
+      else if (key == "max_support_points") config.max_support_points = static_cast<int>(v);
+      else if (key == "min_cluster_points") config.min_cluster_points = static_cast<int>(v);
+      else if (key == "min_cluster_coarse_points") config.min_cluster_coarse_points = static_cast<int>(v);
+      else if (key == "max_range_m") config.max_range_m = v;
+      else if (key == "end_margin_m") config.end_margin_m = v;
+      else if (key == "rays_per_point") config.rays_per_point = static_cast<int>(v);
+      else if (key == "origin_spacing_m") config.origin_spacing_m = v;
+      else if (key == "dynamic_grow_radius_m") config.dynamic_grow_radius_m = v;
+      else if (key == "mending_distance_m") config.mending_distance_m = v;
+      else {
+        std::fprintf(stderr, "dynamic_detection_benchmark: unknown --set key %s\n", key.c_str());
+        return 2;
+      }
+    }
     core::StatusOr<core::DynamicDetector> detector = core::DynamicDetector::Create(config);
     if (!detector.ok()) {
       std::fprintf(stderr, "dynamic_detection_benchmark: %s\n", detector.status().message().c_str());
@@ -384,12 +451,14 @@ int main(int argc, char** argv) {
       const SessionData& d = s == 0 ? H : C;
       for (const auto& submap : d.submaps) flags[s].emplace_back(submap.points.size(), 0);
     }
-    std::vector<double> times;
+    std::vector<double> times, cpu_times;
     std::size_t mending = 0;
     for (const auto& [h, c] : pairs) {
       const Eigen::Isometry3d T_current_history = C.T_world_submap[c].inverse() * H.T_world_submap[h];
+      const std::clock_t cpu_start = std::clock();
       core::StatusOr<core::DynamicDetectionResult> result =
           detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history);
+      cpu_times.push_back(static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC);
       if (!result.ok()) {
         std::fprintf(stderr, "pair %zu/%zu: %s\n", h, c, result.status().message().c_str());
         continue;
@@ -409,10 +478,24 @@ int main(int argc, char** argv) {
         }
         core::StatusOr<core::PointIndex> other_index = core::PointIndex::Create(other_world);
         std::map<std::uint32_t, bool> observed;
+        std::vector<Eigen::Vector3d> other_origins;
+        for (const core::SubmapScanRecord& scan : other.submaps[theirs].scans) {
+          other_origins.push_back(other.T_world_submap[theirs] * scan.T_submap_sensor.translation());
+        }
         for (std::size_t i = 0; i < self.submaps[mine].points.size(); ++i) {
           std::uint8_t& f = flags[s][mine][i];
-          f |= 2;
           const Eigen::Vector3d p = self.T_world_submap[mine] * self.submaps[mine].points[i];
+          if (eval_range > 0.0) {
+            bool in_range = false;
+            for (const Eigen::Vector3d& o : other_origins) {
+              if ((o - p).squaredNorm() <= eval_range * eval_range) {
+                in_range = true;
+                break;
+              }
+            }
+            if (!in_range) continue;
+          }
+          f |= 2;
           if (other_index.value().CountWithin(p, 2.0, 1) > 0) f |= 8;
           const std::uint32_t id = self.objects[mine][i];
           if (is_low(id)) {
@@ -427,7 +510,8 @@ int main(int argc, char** argv) {
     }
     long static_all = 0, static_kept = 0, static_near = 0, static_near_kept = 0;
     long canopy = 0, canopy_kept = 0, low = 0, low_removed = 0, high = 0, high_removed = 0;
-    long low_unobserved = 0, unlabelled = 0;
+    long low_unobserved = 0, unlabelled = 0, low_replaced = 0, low_replaced_removed = 0;
+    std::map<std::uint32_t, std::pair<long, long>> vacated_objects;
     for (int s = 0; s < 2; ++s) {
       const SessionData& d = s == 0 ? H : C;
       for (std::size_t m = 0; m < d.submaps.size(); ++m) {
@@ -445,6 +529,14 @@ int main(int argc, char** argv) {
             if (f & 4) {
               ++low;
               low_removed += removed;
+              if (is_replaced(d.objects[m][i])) {
+                ++low_replaced;
+                low_replaced_removed += removed;
+              } else if (per_object) {
+                auto& counts = vacated_objects[d.objects[m][i]];
+                ++counts.first;
+                counts.second += removed;
+              }
             } else {
               ++low_unobserved;
             }
@@ -468,6 +560,16 @@ int main(int argc, char** argv) {
     std::printf("  low-dynamic DA %.2f %% (%ld/%ld removed; %ld low-dynamic points whose place "
                 "the other session did not see)\n",
                 pct(low_removed, low), low_removed, low, low_unobserved);
+    std::printf("    of which on a place taken by another object in the other session: DA %.2f %% "
+                "(%ld/%ld); on a vacated place: DA %.2f %% (%ld/%ld)\n",
+                pct(low_replaced_removed, low_replaced), low_replaced_removed, low_replaced,
+                pct(low_removed - low_replaced_removed, low - low_replaced),
+                low_removed - low_replaced_removed, low - low_replaced);
+    for (const auto& [id, counts] : vacated_objects) {
+      std::printf("    vacated object %u (%s, %.1f x %.1f x %.1f m): %ld/%ld points removed\n", id,
+                  objects[id].cls.c_str(), objects[id].size[0], objects[id].size[1],
+                  objects[id].size[2], counts.second, counts.first);
+    }
     std::printf("  static SA %.3f %% (%ld/%ld kept); within 2 m of the other submap %.3f %% "
                 "(%ld/%ld)\n",
                 pct(static_kept, static_all), static_kept, static_all,
@@ -477,8 +579,11 @@ int main(int argc, char** argv) {
     std::printf("  high-dynamic leftovers in the submaps: %ld, removed %ld; unlabelled %ld\n",
                 high, high_removed, unlabelled);
     const double max_time = times.empty() ? 0.0 : *std::max_element(times.begin(), times.end());
-    std::printf("  time per pair: median %.3f s, max %.3f s over %zu pairs; mending %zu points\n",
-                Median(times), max_time, times.size(), mending);
+    std::printf("  time per pair: median %.3f s, max %.3f s over %zu pairs (wall); CPU time "
+                "median %.3f s, max %.3f s; mending %zu points\n",
+                Median(times), max_time, times.size(), Median(cpu_times),
+                cpu_times.empty() ? 0.0 : *std::max_element(cpu_times.begin(), cpu_times.end()),
+                mending);
     char buffer[1024];
     std::snprintf(buffer, sizeof(buffer),
                   "%s\"height_guard_%s\": {\"low_dynamic_da\": %.5f, \"low_dynamic_points\": %ld, "

@@ -201,7 +201,12 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     return 3;
   }
   map.parameters_yaml = core::PipelineConfigToYaml(config);
+  result.value().timings.global_registration_s = merged.value().matching.registration_s;
+  result.value().timings.dynamic_detection_s = merged.value().dynamic_pair_s;
   core::SessionRunInfo run;
+  run.merge_matching_s = merged.value().matching_s;
+  run.merge_optimisation_s = merged.value().optimisation_s;
+  run.merge_update_s = merged.value().update_s;
   run.bag_duration_s = record.duration_s;
   run.merge_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - merge_start).count();
   run.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

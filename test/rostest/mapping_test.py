@@ -24,6 +24,7 @@ from std_msgs.msg import String
 from multisession_mapper.msg import DynamicPoints, LoopCandidateArray, PlaceMatch, SubmapInfo
 
 PKG = "multisession_mapper"
+REPO = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 
 
 class Collector:
@@ -81,7 +82,7 @@ class MappingLaunchTest(unittest.TestCase):
         subprocess.check_call([sim[0], "--profile", "tiny", "--sessions", "2", "--seed", "1",
                                "--out", cls.data, "--quiet"])
         # 5 m submaps so that the ~14 m route gives several (default: 20 m).
-        source = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "cfg", "default.yaml")
+        source = os.path.join(REPO, "cfg", "default.yaml")
         with open(source) as f:
             config = yaml.safe_load(f)
         config["submap"]["max_translation_m"] = 5.0
@@ -99,7 +100,10 @@ class MappingLaunchTest(unittest.TestCase):
         c = self.collector
         c.clear()
         launch = subprocess.Popen(
-            ["roslaunch", PKG, "mapping.launch", "bag:=" + os.path.join(self.data, bag),
+            # By path: `roslaunch PKG file` walks the whole package folder (a catkin workspace
+            # inside the repository makes that take minutes).
+            ["roslaunch", os.path.join(REPO, "launch", "mapping.launch"),
+             "bag:=" + os.path.join(self.data, bag),
              "map_dir:=" + self.map_dir, "config:=" + self.config, "idle_finish_s:=3.0",
              "start_delay:=4.0"])
         try:

@@ -43,6 +43,9 @@ struct MapContents {
   std::string parameters_yaml;  ///< configuration the map was built with (a YAML mapping)
   /// Further files by relative path (e.g. "loops/s01.csv") with their full new content.
   std::map<std::string, std::string> files;
+  /// Further point clouds by relative path (e.g. "dynamics/s01_removed.pcd"), written as PCD
+  /// like the submaps; not read back by Load() (they are records, carried over on save).
+  std::map<std::string, PointVector> clouds;
   /// Submaps ("session/id") whose points are unchanged since they were loaded: their PCD is
   /// hard-linked from the old map instead of being written again.
   std::set<std::string> clean_submaps;

@@ -4,11 +4,13 @@
 // the dynamic detection: voxels are grouped in 8^3 blocks that are allocated when first
 // touched, so a segment through empty space costs one array lookup per voxel.
 //
-// Own implementation instead of OctoMap: measured with `dynamic_detection_benchmark
-// --compare-octomap` on simulated submap pairs (see the comment in dynamic_detection.cpp for
-// the figures), an OcTree lookup per traversed key (computeRayKeys + search) is several times
-// slower than this flat lookup, and the detection needs per-voxel counters for two sessions,
-// which OcTree nodes do not hold.
+// Own implementation instead of OctoMap, measured with `dynamic_detection_benchmark
+// --compare-octomap` (simulated `small` sessions s00/s01, first submap pair, voxel 0.2 m, each
+// point ray-cast from its nearest scan origin, shared 2-core machine under load): OcTree
+// computeRayKeys + search per key 1087 ms vs Traverse() 121 ms for 32,569 rays of s00/0, and
+// 300 ms vs 38 ms for 12,820 rays of s01/0 (same occupied voxels found up to the key
+// discretisation). The detection also needs per-voxel counters for two sessions, which OcTree
+// nodes do not hold.
 #pragma once
 
 #include <algorithm>

@@ -56,6 +56,8 @@ struct SessionTimings {
   std::vector<double> optimisation_s;     ///< per pose graph solve
   std::vector<double> descriptor_ms;      ///< per scan, filled by the place recognizer
   std::vector<double> query_ms;           ///< per scan with a history database
+  std::vector<double> global_registration_s;  ///< per inter-session candidate pair (merge)
+  std::vector<double> dynamic_detection_s;    ///< per overlapping submap pair (merge)
 };
 
 struct SessionResult {

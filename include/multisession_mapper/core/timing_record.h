@@ -24,6 +24,9 @@ struct SessionRunInfo {
   double bag_duration_s = 0.0;  ///< first to last scan stamp
   double peak_rss_mb = 0.0;
   double merge_s = 0.0;         ///< joint optimisation, dynamics, update and save
+  double merge_matching_s = 0.0;      ///< voting, global registration, consistency [s]
+  double merge_optimisation_s = 0.0;  ///< joint graph and the proximity loop search [s]
+  double merge_update_s = 0.0;        ///< dynamic detection and map update [s]
 };
 
 std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run);

@@ -1,0 +1,160 @@
+// global_registration_benchmark: accuracy and time per pair of GlobalRegistration (issue 6) on
+// the submaps of a stored map. Not part of the pipeline and not a test.
+//   global_registration_benchmark --map DIR [--method fpfh_ransac|yaw_search_icp|both]
+//       [--max-distance M] [--max-pairs N]
+// Pairs: submaps of the map whose origins are within --max-distance (overlapping) and, for the
+// rejection check, the same pairs with the target mirrored (a place that does not exist). Each source submap
+// is first moved by a large known transform (yaw 90-180 deg, 15-30 m, fixed seed), so the
+// registration starts with no usable guess. Reference: the map's own optimised submap poses
+// (no ground truth is read).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "multisession_mapper/core/global_registration.h"
+#include "multisession_mapper/core/map_store.h"
+#include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/tools/cli.h"
+
+namespace core = multisession_mapper::core;
+
+namespace {
+
+const char kUsage[] =
+    "usage: global_registration_benchmark --map DIR [options]\n"
+    "  --method M        fpfh_ransac | yaw_search_icp | both (default both)\n"
+    "  --max-distance M  overlapping pairs: origins within this distance [m] (15)\n"
+    "  --max-pairs N     at most N overlapping and N non-overlapping pairs (20)\n";
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string map_dir, method = "both";
+  double max_distance_m = 15.0;
+  long long max_pairs = 20;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const bool has_value = i + 1 < argc;
+    if (arg == "--map" && has_value) {
+      map_dir = argv[++i];
+    } else if (arg == "--method" && has_value) {
+      method = argv[++i];
+    } else if (arg == "--max-distance" && has_value) {
+      if (!multisession_mapper::tools::ParseDouble(argv[++i], &max_distance_m)) {
+        std::fprintf(stderr, "bad --max-distance\n%s", kUsage);
+        return 2;
+      }
+    } else if (arg == "--max-pairs" && has_value) {
+      if (!multisession_mapper::tools::ParseInt(argv[++i], &max_pairs) || max_pairs < 1) {
+        std::fprintf(stderr, "bad --max-pairs\n%s", kUsage);
+        return 2;
+      }
+    } else {
+      std::fprintf(stderr, "unknown or incomplete argument '%s'\n%s", arg.c_str(), kUsage);
+      return 2;
+    }
+  }
+  if (map_dir.empty()) {
+    std::fprintf(stderr, "--map is required\n%s", kUsage);
+    return 2;
+  }
+  std::vector<core::GlobalRegistrationConfig::Method> methods;
+  if (method == "fpfh_ransac" || method == "both") {
+    methods.push_back(core::GlobalRegistrationConfig::Method::kFpfhRansac);
+  }
+  if (method == "yaw_search_icp" || method == "both") {
+    methods.push_back(core::GlobalRegistrationConfig::Method::kYawSearchIcp);
+  }
+  if (methods.empty()) {
+    std::fprintf(stderr, "unknown --method '%s'\n%s", method.c_str(), kUsage);
+    return 2;
+  }
+  const core::StatusOr<core::MapContents> map = core::MapStore().Load(map_dir);
+  if (!map.ok()) {
+    std::fprintf(stderr, "cannot load the map: %s\n", map.status().message().c_str());
+    return 1;
+  }
+  const auto& submaps = map.value().submaps;
+  std::vector<std::pair<std::size_t, std::size_t>> near;
+  for (std::size_t i = 0; i < submaps.size(); ++i) {
+    for (std::size_t j = i + 1; j < submaps.size(); ++j) {
+      const double d =
+          (submaps[i].T_map_submap.translation() - submaps[j].T_map_submap.translation()).norm();
+      if (d <= max_distance_m && static_cast<long long>(near.size()) < max_pairs) near.push_back({j, i});
+    }
+  }
+  std::printf("%zu submaps; %zu overlapping pairs (origins <= %.0f m); the same pairs with a "
+              "mirrored target as non-overlapping pairs\n",
+              submaps.size(), near.size(), max_distance_m);
+  for (core::GlobalRegistrationConfig::Method m : methods) {
+    core::GlobalRegistrationConfig config;
+    config.method = m;
+    const core::GlobalRegistration registration = core::GlobalRegistration::Create(config).value();
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> yaw(M_PI / 2.0, M_PI), dist(15.0, 30.0),
+        dir(-M_PI, M_PI);
+    std::vector<double> err_m, err_deg, times, coarse_times, cpu_times;
+    int accepted = 0, wrong = 0, far_accepted = 0;
+    for (const auto& [s, t] : near) {
+      const double a = dir(rng), r = dist(rng);
+      const core::Pose3 moved =
+          core::se3::FromXyzRpy(r * std::cos(a), r * std::sin(a), 0.0, 0.0, 0.0,
+                                (rng() % 2 ? 1.0 : -1.0) * yaw(rng));
+      core::PointVector source;
+      source.reserve(submaps[s].points.size());
+      for (const Eigen::Vector3d& p : submaps[s].points) source.push_back(moved * p);
+      const std::clock_t cpu_start = std::clock();
+      const core::GlobalRegistrationResult result = registration.Register(source, submaps[t].points);
+      cpu_times.push_back(static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC);
+      times.push_back(result.time_s);
+      coarse_times.push_back(result.coarse_time_s);
+      const core::Pose3 reference = core::se3::Between(submaps[t].T_map_submap, submaps[s].T_map_submap);
+      const core::Pose3 error = core::se3::Between(reference, result.T_target_source * moved);
+      const double em = core::se3::TranslationNorm(error);
+      const double ed = core::se3::RotationAngleRad(error) * 180.0 / M_PI;
+      std::printf("  %s %u <- %u: %s %.3f m %.3f deg, overlap %.2f, structure %.2f, %.2f s "
+                  "(coarse %.2f s) %s\n",
+                  core::GlobalRegistrationMethodName(m), submaps[t].id, submaps[s].id,
+                  result.accepted ? "accepted" : "rejected", em, ed, result.overlap_ratio,
+                  result.structure_overlap_ratio, result.time_s, result.coarse_time_s,
+                  result.reason.c_str());
+      if (!result.accepted) continue;
+      ++accepted;
+      if (em > 1.0 || ed > 3.0) ++wrong;
+      err_m.push_back(em);
+      err_deg.push_back(ed);
+    }
+    for (const auto& [s, t] : near) {
+      // A place that does not exist: the target mirrored (y -> -y). No rigid transform maps
+      // the source onto it except by chance symmetry; every acceptance is wrong.
+      core::PointVector mirrored = submaps[t].points;
+      for (Eigen::Vector3d& p : mirrored) p.y() = -p.y();
+      const std::clock_t cpu_start = std::clock();
+      const core::GlobalRegistrationResult result = registration.Register(submaps[s].points, mirrored);
+      cpu_times.push_back(static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC);
+      times.push_back(result.time_s);
+      coarse_times.push_back(result.coarse_time_s);
+      far_accepted += result.accepted;
+    }
+    std::printf("[%s] overlapping: %d/%zu accepted, %d of them wrong (> 1 m / 3 deg), error median "
+                "%.3f m / %.3f deg; mirrored: %d/%zu accepted (must be 0); time per pair median "
+                "%.3f s wall (coarse %.3f s), max %.3f s; CPU time per pair median %.3f s, max %.3f s\n",
+                core::GlobalRegistrationMethodName(m), accepted, near.size(), wrong,
+                Median(err_m), Median(err_deg), far_accepted, near.size(), Median(times),
+                Median(coarse_times),
+                times.empty() ? NAN : *std::max_element(times.begin(), times.end()),
+                Median(cpu_times),
+                cpu_times.empty() ? NAN : *std::max_element(cpu_times.begin(), cpu_times.end()));
+  }
+  return 0;
+}
