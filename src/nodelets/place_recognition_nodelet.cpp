@@ -16,7 +16,6 @@
 #include <memory>
 #include <mutex>
 #include <set>
-#include <sstream>
 
 #include <dynamic_reconfigure/server.h>
 #include <multisession_mapper/LoopCandidateArray.h>
@@ -86,14 +85,10 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
       NODELET_ERROR_STREAM("PlaceRecognition: " << map.status().message());
       return;
     }
-    auto file = map.value().files.find("database/descriptors.bin");
-    if (file == map.value().files.end()) {
-      NODELET_WARN("PlaceRecognition: the stored map has no descriptor database");
-      return;
-    }
-    std::istringstream bytes(file->second);
-    core::StatusOr<core::DescriptorDatabase> db = core::DescriptorDatabase::Read(
-        bytes, file->second.size(), map_dir_ + "/database/descriptors.bin", config_.database);
+    // MapStore carries the database as an opaque file (not read by Load): read it directly.
+    const std::string path = map_dir_ + "/database/descriptors.bin";
+    core::StatusOr<core::DescriptorDatabase> db =
+        core::DescriptorDatabase::Load(path, config_.database);
     if (!db.ok()) {
       NODELET_ERROR_STREAM("PlaceRecognition: " << db.status().message());
       return;
@@ -150,20 +145,24 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
       return;
     }
     if (!history_) return;
-    const std::vector<core::ScanVote> votes = recognizer_->VotesOf(msg->submap_id);
-    if (votes.empty()) return;
+    if (recognizer_->queries().empty()) return;
+    const core::ScanQuery& query = recognizer_->queries().back();  // this scan's query
     PlaceMatch match;
     match.header = msg->header;
     match.session = msg->session;
     match.submap = msg->submap_id;
-    match.matched = votes.back().matched;
-    if (match.matched) {
-      match.history_session = votes.back().history.session;
-      match.history_submap = static_cast<std::uint32_t>(votes.back().history.submap_id);
+    match.matched = query.result.matched && !query.result.neighbors.empty();
+    match.descriptor_distance = -1.0f;  // no neighbour at all (empty history)
+    if (!query.result.neighbors.empty()) {
+      const core::DatabaseNeighbor& nearest = query.result.neighbors.front();
+      const core::DatabaseEntry& entry = recognizer_->history()->entry(nearest.index);
+      match.descriptor_distance = nearest.distance;
+      if (match.matched) {
+        match.history_session = entry.session;
+        match.history_submap = static_cast<std::uint32_t>(entry.submap_id);
+        match.history_scan_stamp = entry.stamp_s;
+      }
     }
-    // The recognizer does not expose the distance / stamp of the nearest scan (see report).
-    match.descriptor_distance = -1.0f;
-    match.history_scan_stamp = 0.0;
     match_pub_.publish(match);
   }
 

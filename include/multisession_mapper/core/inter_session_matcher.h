@@ -29,8 +29,8 @@ namespace core {
 struct SequenceConsistencyConfig {
   /// Two loops agree when the map <- session transforms they imply differ by less than
   /// these [m], [rad] (translation measured at the current submap's origin).
-  double max_translation_m = 1.0;
-  double max_rotation_rad = 0.05;
+  double max_translation_m = 0.5;
+  double max_rotation_rad = 0.02;
   /// The bounds grow with the distance between the two current submaps' origins (odometry
   /// drift of both sessions between them) by these [m/m], [rad/m].
   double max_translation_per_m = 0.01;

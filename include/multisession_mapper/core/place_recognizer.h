@@ -68,6 +68,9 @@ class PlaceRecognizer {
   const std::vector<double>& descriptor_ms() const { return descriptor_ms_; }
   const std::vector<double>& query_ms() const { return query_ms_; }
   std::size_t num_scans() const { return entries_.size(); }
+  /// The queries of this session so far, in scan order (empty when there is no history);
+  /// neighbour indices refer to history()->entry().
+  const std::vector<ScanQuery>& queries() const { return queries_; }
 
  private:
   PlaceRecognizer(const PlaceRecognizerConfig& config, const std::string& session,
