@@ -165,6 +165,7 @@ TEST(SessionMapper, UpdateConfigAppliesToTheNextScanAndRefusesInvalidValues) {
   LidarPoint p;
   p.position_m = Eigen::Vector3f(5.0f, 1.0f, 0.0f);
   r.deskewed_scan.points.assign(50, p);
+  r.registered = true;
   for (int i = 0; i <= 24; ++i) {
     r.stamp_s = 0.1 * (i + 1);
     r.deskewed_scan.stamp_s = r.stamp_s;
@@ -185,6 +186,38 @@ TEST(SessionMapper, SkipsBadScansAndKeepsGoing) {
   StatusOr<SessionResult> result = mapper.value().Finish();
   ASSERT_FALSE(result.ok());
   EXPECT_NE(result.status().message().find("no submap"), std::string::npos);
+}
+
+// After the first scan, a scan whose scan-to-map ICP failed (a jump of the sensor, a long
+// gap) has only a predicted pose: it is skipped with a message, never mapped at that pose.
+TEST(SessionMapper, ScansWhoseRegistrationFailedAreNotMapped) {
+  StatusOr<SessionMapper> mapper = SessionMapper::Create(SessionMapperConfig(), "s");
+  ASSERT_TRUE(mapper.ok());
+  OdometryResult r;
+  LidarPoint p;
+  p.position_m = Eigen::Vector3f(5.0f, 1.0f, 0.0f);
+  r.deskewed_scan.points.assign(50, p);
+  for (int i = 0; i < 6; ++i) {
+    r.stamp_s = 0.1 * (i + 1);
+    r.deskewed_scan.stamp_s = r.stamp_s;
+    r.pose = Pose3::Identity();
+    r.pose.translation() = Eigen::Vector3d(0.5 * i, 0.0, 0.0);
+    r.registered = i != 0 && i != 3;  // the first scan has no map to register to
+    r.message = "too few correspondences";
+    const Status s = mapper.value().AddRegisteredScan(r);
+    if (i == 3) {
+      ASSERT_FALSE(s.ok());
+      EXPECT_NE(s.message().find("too few correspondences"), std::string::npos) << s.message();
+    } else {
+      EXPECT_TRUE(s.ok()) << "scan " << i << ": " << s.message();
+    }
+  }
+  StatusOr<SessionResult> result = mapper.value().Finish();
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  EXPECT_EQ(result.value().scans_processed, 5u);
+  EXPECT_EQ(result.value().scans_skipped, 1u);
+  ASSERT_EQ(result.value().trajectory.size(), 5u);
+  for (const StampedPose& sp : result.value().trajectory) EXPECT_NE(sp.stamp_s, 0.1 * 4);
 }
 
 TEST(SessionMapper, InvalidConfigIsRefused) {

@@ -176,8 +176,19 @@ struct SessionMapper::State {
     for (Submap& submap : builder.TakeFinished()) AddFinishedSubmap(std::move(submap));
   }
 
-  // Everything after the odometry, shared by AddScan and AddRegisteredScan.
-  void AddOdometryResult(OdometryResult result) {
+  // Everything after the odometry, shared by AddScan and AddRegisteredScan. A scan whose ICP
+  // failed after the first one (a jump of the sensor pose, a long gap, a scan that does not
+  // match its surroundings) has only a predicted pose: it is skipped, not put into a submap at
+  // a pose that may be wrong.
+  Status AddOdometryResult(OdometryResult result) {
+    if (has_last && !result.registered) {
+      ++skipped;
+      return Status::Error("scan-to-map registration failed (" +
+                           (result.message.empty() ? std::string("no convergence")
+                                                   : result.message) +
+                           "); its pose is only predicted, so it is not mapped (a jump of the "
+                           "sensor or a long gap?)");
+    }
     ++processed;
     timings.odometry_ms.push_back(result.timing.total_ms);
     const auto start = std::chrono::steady_clock::now();
@@ -186,6 +197,7 @@ struct SessionMapper::State {
     last = std::move(result);
     has_last = true;
     DrainBuilder();
+    return Status::Ok();
   }
 };
 
@@ -217,8 +229,7 @@ Status SessionMapper::AddScan(const LidarScan& raw_scan) {
     ++st.skipped;
     return result.status();
   }
-  st.AddOdometryResult(std::move(result.value()));
-  return Status::Ok();
+  return st.AddOdometryResult(std::move(result.value()));
 }
 
 Status SessionMapper::AddRegisteredScan(const OdometryResult& registered) {
@@ -236,8 +247,7 @@ Status SessionMapper::AddRegisteredScan(const OdometryResult& registered) {
   sp.stamp_s = registered.stamp_s;
   sp.pose = registered.pose;
   st.split_odometry.push_back(sp);
-  st.AddOdometryResult(registered);
-  return Status::Ok();
+  return st.AddOdometryResult(registered);
 }
 
 Status SessionMapper::UpdateConfig(const SessionMapperConfig& config) {

@@ -155,9 +155,18 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
                                 : reader.value().num_messages();
   msm::tools::Progress progress(name, total, "scans", !options.quiet);
   std::size_t bad_scans = 0;
+  double last_stamp_s = 0.0;
   const core::Status read = reader.value().ForEach(
       [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
         if (options.max_scans > 0 && index >= static_cast<std::size_t>(options.max_scans)) return false;
+        if (scan.ok() && last_stamp_s > 0.0 &&
+            scan.value().stamp_s - last_stamp_s > config.session.odometry.max_scan_gap_s) {
+          std::fprintf(stderr,
+                       "\noffline_mapper: gap of %.2f s before scan %zu (more than "
+                       "odometry.max_scan_gap_s): the motion model restarts\n",
+                       scan.value().stamp_s - last_stamp_s, index);
+        }
+        if (scan.ok()) last_stamp_s = scan.value().stamp_s;
         core::Status status = scan.ok() ? mapper.value().AddScan(scan.value()) : scan.status();
         if (status.ok()) {
           status = recognizer.value().AddScan(mapper.value().last_odometry()->deskewed_scan,
