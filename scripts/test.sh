@@ -12,14 +12,14 @@ results="${MSM_WS}/build/test_results"
 rm -rf "${results}"
 msm_log "building the tests"
 set +e
-catkin_make -C "${MSM_WS}" -j"${MSM_JOBS:-$(nproc)}" tests 2>&1 \
+catkin_make -C "${MSM_WS}" --source "${MSM_SRC}" -j"${MSM_JOBS:-$(nproc)}" tests 2>&1 \
   | grep -vE '^\[ *[0-9]+%\] (Built target|Generating|Building)'
 build_status=${PIPESTATUS[0]}
 set -e
 [ "${build_status}" -eq 0 ] || msm_die "building the tests failed"
 msm_log "running the tests"
 # catkin_make run_tests exits 0 even when tests fail (quirk 3): judge by catkin_test_results.
-catkin_make -C "${MSM_WS}" -j1 run_tests 2>&1 \
+catkin_make -C "${MSM_WS}" --source "${MSM_SRC}" -j1 run_tests 2>&1 \
   | grep -vE '^\[ *[0-9]+%\] (Built target|Generating|Building)' || true
 
 msm_log "test results"

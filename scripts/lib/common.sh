@@ -53,14 +53,25 @@ msm_install_deps() {
   rospack profile >/dev/null 2>&1 || true
 }
 
-# Creates the catkin workspace (ignored folder) with the repository linked into src/.
+# Creates the catkin workspace (ignored folder) with the repository linked into its source
+# space MSM_SRC = ${MSM_WS}/.src. The source space is hidden because roslaunch / rostest find a
+# node (`<node pkg= type=>`, `<test>`) by walking the package's whole folder, following links
+# and skipping only hidden folders: a visible link from build/ back to the repository makes
+# that walk endless (CATKIN_IGNORE stops catkin and rospack, not that walk). Workspaces created
+# before with src/ keep it (pass MSM_SRC to every catkin_make: --source "${MSM_SRC}").
 msm_prepare_workspace() {
-  mkdir -p "${MSM_WS}/src"
+  if [ -e "${MSM_WS}/src/multisession_mapper" ]; then
+    MSM_SRC="${MSM_WS}/src"
+  else
+    MSM_SRC="${MSM_WS}/.src"
+  fi
+  export MSM_SRC
+  mkdir -p "${MSM_SRC}"
   # The workspace links back to the repository; keep rospack from crawling into build/
   # (it would report a file system loop).
   case "${MSM_WS}" in "${MSM_REPO}/build/"*) touch "${MSM_REPO}/build/CATKIN_IGNORE" ;; esac
-  if [ ! -e "${MSM_WS}/src/multisession_mapper" ]; then
-    ln -s "${MSM_REPO}" "${MSM_WS}/src/multisession_mapper"
+  if [ ! -e "${MSM_SRC}/multisession_mapper" ]; then
+    ln -s "${MSM_REPO}" "${MSM_SRC}/multisession_mapper"
   fi
 }
 
@@ -69,7 +80,7 @@ msm_build() {
   local first_build=0
   [ -f "${MSM_WS}/devel/setup.bash" ] || first_build=1
   local jobs="${MSM_JOBS:-$(nproc)}"
-  local args=(-C "${MSM_WS}" -DPYTHON_EXECUTABLE=/usr/bin/python3 -j"${jobs}")
+  local args=(-C "${MSM_WS}" --source "${MSM_SRC}" -DPYTHON_EXECUTABLE=/usr/bin/python3 -j"${jobs}")
   # Release by default; a user's CMAKE_BUILD_TYPE / flags win.
   if [ -n "${CMAKE_BUILD_TYPE:-}" ]; then
     args+=(-DCMAKE_BUILD_TYPE="${CMAKE_BUILD_TYPE}")
@@ -81,7 +92,7 @@ msm_build() {
   if [ ${first_build} -eq 1 ]; then
     # The package's own python path exists only after the first build (quirk 2).
     # shellcheck disable=SC1091
-    (set +u; source "${MSM_WS}/devel/setup.bash"; catkin_make -C "${MSM_WS}" --force-cmake \
+    (set +u; source "${MSM_WS}/devel/setup.bash"; catkin_make -C "${MSM_WS}" --source "${MSM_SRC}" --force-cmake \
        -DPYTHON_EXECUTABLE=/usr/bin/python3 -j"${jobs}" "$@") || msm_die "re-configure failed"
   fi
 }

@@ -20,7 +20,11 @@ Status IntraLoopConfig::Validate() const {
   if (!(search_radius_m > 0.0)) return Status::Error("intra_loops.search_radius_m must be > 0");
   if (min_id_gap < 1) return Status::Error("intra_loops.min_id_gap must be >= 1");
   if (max_candidates < 1) return Status::Error("intra_loops.max_candidates must be >= 1");
-  return registration.Validate();
+  if (!(global_max_correction_m > 0.0) || !(global_max_correction_rad > 0.0)) {
+    return Status::Error("intra_loops.global_max_correction_m/_rad must be > 0");
+  }
+  Status s = global.Validate();
+  return s.ok() ? registration.Validate() : s;
 }
 
 Status SessionMapperConfig::Validate() const {
@@ -140,18 +144,49 @@ struct SessionMapper::State {
       record.T_history_current = result.T_target_source;
       record.status = result.accepted ? LoopStatus::kAccepted : LoopStatus::kRejected;
       record.reason = result.reason;
+      Information6 information = result.information;
+      if (!result.accepted && config.intra_loops.global_fallback) {
+        RegisterWithoutPrior(id, other, prior, &record, &information);
+      }
       loops.push_back(record);
-      if (!result.accepted) continue;
+      if (record.status != LoopStatus::kAccepted) continue;
       PoseGraphEdge edge;
       edge.from = other;
       edge.to = id;
-      edge.T_from_to = result.T_target_source;
-      edge.information = result.information;
+      edge.T_from_to = record.T_history_current;
+      edge.information = information;
       edge.kind = EdgeKind::kIntraLoop;
       accepted_any = graph.AddEdge(edge).ok() || accepted_any;
     }
     timings.intra_loop_s.push_back(SecondsSince(start));
     if (accepted_any) Optimise();
+  }
+
+  // The fallback of a failed loop registration: global registration of the pair, accepted
+  // only near the prior (a drifted revisit, not some look-alike place elsewhere).
+  void RegisterWithoutPrior(std::uint32_t id, std::uint32_t other, const Pose3& prior,
+                            LoopRecord* record, Information6* information) const {
+    StatusOr<GlobalRegistration> global = GlobalRegistration::Create(config.intra_loops.global);
+    if (!global.ok()) return;
+    const GlobalRegistrationResult g =
+        global.value().Register(submaps[id].points, submaps[other].points);
+    if (!g.accepted) {
+      record->reason += "; without prior: " + g.reason;
+      return;
+    }
+    const Pose3 correction = se3::Between(prior, g.T_target_source);
+    const double dt = se3::TranslationNorm(correction), dr = se3::RotationAngleRad(correction);
+    if (dt > config.intra_loops.global_max_correction_m ||
+        dr > config.intra_loops.global_max_correction_rad) {
+      record->reason += "; without prior: too far from the prior (" + std::to_string(dt) +
+                        " m, " + std::to_string(dr) + " rad)";
+      return;
+    }
+    record->status = LoopStatus::kAccepted;
+    record->reason.clear();
+    record->overlap_ratio = g.overlap_ratio;
+    record->T_history_current = g.T_target_source;
+    *information = g.information;
   }
 
   void Optimise() {

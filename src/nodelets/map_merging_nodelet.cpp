@@ -18,6 +18,7 @@
 // handoffs. mutex_ guards map_, the configs, the pending handoffs and the merge counters;
 // merged_ (condition variable, with mutex_) wakes a waiting finish_session. The merge itself
 // runs in the handoff callback holding mutex_ (save_map / load_map wait for it).
+#include <algorithm>
 #include <condition_variable>
 #include <ctime>
 #include <memory>
@@ -111,6 +112,7 @@ class MapMergingNodelet : public nodelet::Nodelet {
   void OnOdom(const nav_msgs::Odometry::ConstPtr&) {
     std::lock_guard<std::mutex> lock(mutex_);
     last_input_ = ros::WallTime::now();
+    if (!session_active_) session_start_ = last_input_;
     session_active_ = true;
   }
 
@@ -205,6 +207,16 @@ class MapMergingNodelet : public nodelet::Nodelet {
     recorded.merge = config;
     map_.parameters_yaml = core::PipelineConfigToYaml(recorded);
     const core::MergeReport& r = report.value();
+    // The timing record again, now with the merge figures (as offline_mapper writes it). Wall
+    // time: first to last scan of the session plus the merge, without the idle wait.
+    timings.global_registration_s = r.matching.registration_s;
+    timings.dynamic_detection_s = r.dynamic_pair_s;
+    run.merge_matching_s = r.matching_s;
+    run.merge_optimisation_s = r.optimisation_s;
+    run.merge_update_s = r.update_s;
+    run.merge_s = (ros::WallTime::now() - start).toSec();
+    run.wall_time_s = std::max(0.0, (last_input_ - session_start_).toSec()) + run.merge_s;
+    map_.files["timing/" + record.name + ".yaml"] = core::TimingYaml(timings, run);
     std::ostringstream summary;
     summary << "session '" << r.session << "'" << (r.first_session ? " (first)" : "") << ": "
             << r.inter_loops << " inter-session loops, " << r.proximity_loops
@@ -326,7 +338,7 @@ class MapMergingNodelet : public nodelet::Nodelet {
   double merged_map_voxel_m_ = 0.5;
   core::MapContents map_;
   bool session_active_ = false;
-  ros::WallTime last_input_;
+  ros::WallTime last_input_, session_start_;
   boost::shared_ptr<const FinishedSession> session_;
   boost::shared_ptr<const FinishedRecognition> recognition_;
   std::size_t merges_ = 0;

@@ -39,7 +39,8 @@ class Collector:
         rospy.Subscriber("/loop_candidates", LoopCandidateArray, self.on_loops, queue_size=10)
         rospy.Subscriber("/dynamic_points", DynamicPoints, self.on_dynamic, queue_size=1000)
         rospy.Subscriber("/change_summary", String, self.on_summary, queue_size=10)
-        rospy.Subscriber("/rosout_agg", Log, self.on_log, queue_size=1000)
+        # /rosout, not /rosout_agg: rostest starts no rosout node to aggregate.
+        rospy.Subscriber("/rosout", Log, self.on_log, queue_size=1000)
 
     def clear(self):
         self.counts = {}

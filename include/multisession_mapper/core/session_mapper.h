@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "multisession_mapper/core/global_registration.h"
 #include "multisession_mapper/core/loop_record.h"
 #include "multisession_mapper/core/odometry.h"
 #include "multisession_mapper/core/pose_graph.h"
@@ -30,6 +31,13 @@ struct IntraLoopConfig {
   /// At most this many candidates (nearest first) per new submap.
   int max_candidates = 3;
   SubmapRegistrationConfig registration;
+  /// When ICP from the prior fails (the drift around a long loop exceeds its reach), register
+  /// the pair again without a prior (GlobalRegistration) and accept the result when it moves
+  /// the prior by at most these [m], [rad] (a drifted loop, not an aliased place elsewhere).
+  bool global_fallback = true;
+  double global_max_correction_m = 15.0;
+  double global_max_correction_rad = 0.35;
+  GlobalRegistrationConfig global;
 
   Status Validate() const;
 };
