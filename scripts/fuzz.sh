@@ -64,6 +64,7 @@ export ASAN_OPTIONS="abort_on_error=1:detect_leaks=1:allocator_may_return_null=1
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 crashes_root="${MSM_REPO}/build/fuzz_crashes"
 failed=0
+crashed=0
 cases=""
 for t in "${TARGETS[@]}"; do
   seeds="${MSM_REPO}/test/fuzz/corpus/${t}"
@@ -92,6 +93,7 @@ for t in "${TARGETS[@]}"; do
     cases+="<testcase classname=\"fuzz\" name=\"${t}\" time=\"${elapsed}\"/>"
   else
     failed=1
+    crashed=$((crashed + 1))
     printf '%-26s CRASH  (exit %d) after %s executions; input saved in %s\n' "${t}" "${rc}" "${execs}" "${crashes}"
     grep -E 'ERROR|runtime error|SUMMARY|#[0-9]+ 0x' "${log}" | head -25
     detail="$(grep -E 'ERROR|runtime error|SUMMARY' "${log}" | head -5 | sed 's/&/\&amp;/g; s/</\&lt;/g; s/>/\&gt;/g; s/"/\&quot;/g')"
@@ -100,7 +102,8 @@ for t in "${TARGETS[@]}"; do
 done
 if [ -n "${junit}" ]; then
   mkdir -p "$(dirname "${junit}")"
-  printf '<?xml version="1.0" encoding="UTF-8"?>\n<testsuite name="fuzz_map_loader" tests="%d">%s</testsuite>\n' \
-    "${#TARGETS[@]}" "${cases}" >"${junit}"
+  # catkin_test_results needs the errors and failures attributes.
+  printf '<?xml version="1.0" encoding="UTF-8"?>\n<testsuite name="fuzz_map_loader" tests="%d" errors="0" failures="%d" skipped="0">%s</testsuite>\n' \
+    "${#TARGETS[@]}" "${crashed}" "${cases}" >"${junit}"
 fi
 exit ${failed}
