@@ -128,7 +128,8 @@ class MappingLaunchTest(unittest.TestCase):
         self.assertEqual(ReconfigureClient("/place_recognition", timeout=10).get_configuration(
             timeout=10)["place_recognition_d_alpha_ring_histogram"], 0.4)
 
-    def run_session(self, bag, dynparam=None, check_configs=False, timeout_s=150.0):
+    def run_session(self, bag, dynparam=None, check_configs=False, timeout_s=150.0,
+                    wait_for_loops=False):
         c = self.collector
         c.clear()
         launch = subprocess.Popen(
@@ -143,7 +144,9 @@ class MappingLaunchTest(unittest.TestCase):
             changed = False
             if check_configs:
                 self.check_initial_configs()  # before the dynparam change
-            while time.time() < deadline and not c.summaries:
+            # The latched loop candidates can arrive after the summary: wait for both.
+            while time.time() < deadline and not (
+                    c.summaries and (c.loops is not None or not wait_for_loops)):
                 if dynparam and not changed and c.counts.get("odom", 0) > 5:
                     subprocess.check_call(["rosrun", "dynamic_reconfigure", "dynparam", "set"] + dynparam)
                     changed = True
@@ -171,7 +174,7 @@ class MappingLaunchTest(unittest.TestCase):
         self.assertTrue(any("SubmapManager: reconfigured" in l and "submap 4.0 m" in l for l in c.logs),
                         "no reconfigure log line for submap 4.0 m")
 
-        c = self.run_session("s01.bag")
+        c = self.run_session("s01.bag", wait_for_loops=True)
         self.assertGreater(c.counts.get("odom", 0), 30)
         self.assertEqual(c.sessions, {"s01"})
         # Every scan is queried against the first session's database; the route is the same.
