@@ -4,7 +4,7 @@
 #include <string>
 #include <utility>
 
-#include <nanoflann.hpp>
+#include "multisession_mapper/core/point_vector_adaptor.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -21,23 +21,7 @@ Status KdTreeTargetConfig::Validate() const {
   return plane.Validate();
 }
 
-namespace {
-
-// nanoflann's dataset interface over a PointVector.
-struct PointVectorAdaptor {
-  const PointVector* points = nullptr;
-  std::size_t kdtree_get_point_count() const { return points->size(); }
-  double kdtree_get_pt(std::size_t i, std::size_t dim) const { return (*points)[i](dim); }
-  template <class Bbox>
-  bool kdtree_get_bbox(Bbox& /*bb*/) const {
-    return false;
-  }
-};
-
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<
-    nanoflann::L2_Simple_Adaptor<double, PointVectorAdaptor>, PointVectorAdaptor, 3, std::size_t>;
-
-}  // namespace
+using Tree = PointVectorKdTree<std::size_t>;
 
 struct KdTreeTarget::Impl {
   explicit Impl(PointVector pts) : points(std::move(pts)) {

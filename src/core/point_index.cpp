@@ -3,25 +3,14 @@
 #include <algorithm>
 #include <utility>
 
-#include <nanoflann.hpp>
+#include "multisession_mapper/core/point_vector_adaptor.h"
 
 namespace multisession_mapper {
 namespace core {
 
 namespace {
 
-struct Adaptor {
-  const PointVector* points = nullptr;
-  std::size_t kdtree_get_point_count() const { return points->size(); }
-  double kdtree_get_pt(std::size_t i, std::size_t dim) const { return (*points)[i](dim); }
-  template <class Bbox>
-  bool kdtree_get_bbox(Bbox& /*bb*/) const {
-    return false;
-  }
-};
-
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Adaptor>,
-                                                 Adaptor, 3, std::uint32_t>;
+using Tree = PointVectorKdTree<std::uint32_t>;
 
 // Collects indices within a squared radius; stops after `cap` (0: no cap).
 class IndexCollector {
@@ -77,7 +66,7 @@ struct PointIndex::Impl {
     if (!points.empty()) tree->buildIndex();
   }
   PointVector points;
-  Adaptor adaptor;
+  PointVectorAdaptor adaptor;
   std::unique_ptr<Tree> tree;
 };
 
