@@ -8,6 +8,16 @@ import sys
 import xml.etree.ElementTree as ET
 
 
+def print_reason(element, max_lines=12):
+    """The failure's message and the end of its text (the assertion), so that a CI log that
+    shows only this summary still says why."""
+    lines = [element.get('message') or '']
+    lines += (element.text or '').strip().splitlines()[-max_lines:]
+    for line in lines:
+        if line.strip():
+            print(f'    {line.rstrip()[:300]}', file=sys.stderr)
+
+
 def count(folder):
     passed = failed = skipped = 0
     for path in sorted(pathlib.Path(folder).rglob('*.xml')):
@@ -18,10 +28,14 @@ def count(folder):
             print(f'unreadable test result: {path}', file=sys.stderr)
             continue
         for case in root.iter('testcase'):
-            if case.find('failure') is not None or case.find('error') is not None:
+            problem = case.find('failure')
+            if problem is None:
+                problem = case.find('error')
+            if problem is not None:
                 failed += 1
                 print(f'FAILED: {path.name}: {case.get("classname")}.{case.get("name")}',
                       file=sys.stderr)
+                print_reason(problem)
             elif case.find('skipped') is not None or case.get('status') == 'notrun':
                 skipped += 1
             else:
