@@ -151,7 +151,7 @@ Status WritePcd(const fs::path& path, const PointVector& points) {
 // PCDReader::read, test map_store_fuzz_regression_test). We keep PCL for the parsing (ascii,
 // binary, LZF-compressed binary) and refuse here whatever it would have to trust: a missing or
 // inconsistent header, sizes that do not add up, data shorter than the header promises.
-Status ValidatePcd(const std::string& bytes, const std::string& name) {
+Status ValidatePcd(const std::string& bytes, const std::string& name, std::uint64_t* num_points) {
   const auto error = [&](const std::string& what) {
     return Status::Error("corrupt point cloud '" + name + "': " + what);
   };
@@ -237,6 +237,7 @@ Status ValidatePcd(const std::string& bytes, const std::string& name) {
   if (width > kMaxPoints || height > kMaxPoints || width * height != points || points > kMaxPoints) {
     return error("POINTS is not WIDTH x HEIGHT");
   }
+  *num_points = points;
   const std::uint64_t body = pos <= bytes.size() ? bytes.size() - pos : 0;
   if (data_kind == "ascii") {
     // Every value takes at least one character and a separator.
@@ -262,8 +263,12 @@ Status ValidatePcd(const std::string& bytes, const std::string& name) {
 StatusOr<PointVector> ReadPcd(const fs::path& path) {
   StatusOr<std::string> bytes = ReadWholeFile(path);
   if (!bytes.ok()) return bytes.status();
-  Status valid = ValidatePcd(bytes.value(), path.string());
+  std::uint64_t num_points = 0;
+  Status valid = ValidatePcd(bytes.value(), path.string(), &num_points);
   if (!valid.ok()) return valid;
+  // Fused submaps and empty change clouds have no points; PCL's reader would print a warning
+  // ("No points to read") for each of them.
+  if (num_points == 0) return PointVector();
   pcl::PointCloud<pcl::PointXYZ> cloud;
   pcl::PCDReader reader;
   if (reader.read(path.string(), cloud) < 0) {
