@@ -183,7 +183,9 @@ TEST_F(InterSessionMatcherTest, FindsTheRevisitedSubmapsAndTheSessionOffset) {
     EXPECT_EQ(rec.kind, LoopKind::kInter);
     EXPECT_EQ(rec.current_session, "c1");
     EXPECT_NE(rec.status, LoopStatus::kCandidate) << "every candidate is decided";
-    if (rec.status != LoopStatus::kAccepted) EXPECT_FALSE(rec.reason.empty());
+    if (rec.status != LoopStatus::kAccepted) {
+      EXPECT_FALSE(rec.reason.empty());
+    }
   }
   // The four submaps on the revisited road are matched (at least three of them: one may be
   // left undefined by the vote), the one in the unvisited place never is.

@@ -4,8 +4,10 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <set>
 #include <utility>
 
+#include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/se3.h"
 
 namespace multisession_mapper {
@@ -59,6 +61,7 @@ Status InterSessionMatcherConfig::Validate() const {
   if (!(neighbour_distance_m > 0.0)) {
     return Status::Error("inter_session.neighbour_distance_m must be > 0");
   }
+  if (num_threads < 1) return Status::Error("inter_session.num_threads must be >= 1");
   s = registration.Validate();
   if (!s.ok()) return s;
   return consistency.Validate();
@@ -90,13 +93,17 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
       SubmapVoting::OriginsWithin(active_origins, config_.neighbour_distance_m);
 
   InterSessionMatchResult result;
-  std::vector<Registered, Eigen::aligned_allocator<Registered>> registered;
-  // Prepared submaps (features, fine target) are built on first use and reused: a history
-  // submap is the target of several current submaps. The preparation time is charged to the
-  // pair that needed it.
-  std::map<std::size_t, std::shared_ptr<const PreparedSubmap>> prepared_history;
-  for (const Submap& cur : current.submaps) {
-    std::shared_ptr<const PreparedSubmap> prepared_current;
+  // 1. Votes and the candidate pairs to register, in submap order (records keep that order).
+  struct Job {
+    std::size_t current = 0;  // index into current.submaps
+    std::size_t history = 0;  // index into history.submaps
+    std::size_t record = 0;   // index into result.records
+    GlobalRegistrationResult reg;
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+  std::vector<Job, Eigen::aligned_allocator<Job>> jobs;
+  for (std::size_t c = 0; c < current.submaps.size(); ++c) {
+    const Submap& cur = current.submaps[c];
     const SubmapVoteResult vote = voting.value().Vote(recognizer.VotesOf(cur.id), neighbours);
     result.votes.push_back(vote);
     LoopRecord base;
@@ -120,64 +127,97 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
       const auto found = index_of.find(candidate);
       if (found == index_of.end()) {
         record.reason = "history submap not in the map";
-        result.records.push_back(record);
-        continue;
-      }
-      const Submap& hist = history.submaps[found->second];
-      if (hist.state != SubmapState::kActive) {
+      } else if (history.submaps[found->second].state != SubmapState::kActive) {
         record.reason = "history submap fused into a later session's";
-        result.records.push_back(record);
-        continue;
+      } else {
+        Job job;
+        job.current = c;
+        job.history = found->second;
+        job.record = result.records.size();
+        jobs.push_back(job);
       }
-      double prepare_s = 0.0;
-      if (!prepared_current) {
-        StatusOr<std::shared_ptr<const PreparedSubmap>> p =
-            registration.value().Prepare(cur.points, false);
-        if (!p.ok()) {
-          record.reason = "current submap: " + p.status().message();
-          result.records.push_back(record);
-          continue;
-        }
-        prepared_current = p.value();
-        prepare_s += GlobalRegistration::PrepareSeconds(*prepared_current);
-      }
-      std::shared_ptr<const PreparedSubmap>& prepared_hist = prepared_history[found->second];
-      if (!prepared_hist) {
-        StatusOr<std::shared_ptr<const PreparedSubmap>> p =
-            registration.value().Prepare(hist.points, true);
-        if (!p.ok()) {
-          record.reason = "history submap: " + p.status().message();
-          result.records.push_back(record);
-          continue;
-        }
-        prepared_hist = p.value();
-        prepare_s += GlobalRegistration::PrepareSeconds(*prepared_hist);
-      }
-      const GlobalRegistrationResult reg =
-          registration.value().Register(*prepared_current, *prepared_hist);
-      result.registration_s.push_back(reg.time_s + prepare_s);
-      record.overlap_ratio = reg.overlap_ratio;
-      record.has_pose = true;
-      record.T_history_current = reg.T_target_source;
-      if (!reg.accepted) {
-        record.reason = "global registration: " + reg.reason;
-        result.records.push_back(record);
-        continue;
-      }
-      Registered r;
-      r.loop.current_submap = cur.id;
-      r.loop.history_index = found->second;
-      r.loop.T_history_current = reg.T_target_source;
-      r.loop.information = reg.information;
-      r.loop.vote_proportion = record.vote_proportion;
-      r.loop.overlap_ratio = reg.overlap_ratio;
-      r.record = result.records.size();
-      r.T_map_session = hist.T_map_submap * reg.T_target_source * cur.T_map_submap.inverse();
-      r.origin = cur.T_map_submap.translation();
-      registered.push_back(r);
-      record.status = LoopStatus::kCandidate;  // decided below
       result.records.push_back(record);
     }
+  }
+
+  // 2. Features and fine targets, once per submap (a history submap is the target of several
+  // current submaps), on config_.num_threads threads.
+  std::map<std::pair<bool, std::size_t>, std::shared_ptr<const PreparedSubmap>> prepared;
+  for (const Job& job : jobs) {
+    prepared[{false, job.current}] = nullptr;
+    prepared[{true, job.history}] = nullptr;
+  }
+  std::vector<std::pair<bool, std::size_t>> keys;
+  for (const auto& entry : prepared) keys.push_back(entry.first);
+  std::vector<StatusOr<std::shared_ptr<const PreparedSubmap>>> built(keys.size(),
+                                                                     Status::Error("not run"));
+  ParallelFor(keys.size(), config_.num_threads, [&](std::size_t i) {
+    const auto& [as_target, index] = keys[i];
+    const Submap& submap = as_target ? history.submaps[index] : current.submaps[index];
+    built[i] = registration.value().Prepare(submap.points, as_target);
+  });
+  std::map<std::pair<bool, std::size_t>, std::string> prepare_error;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    if (built[i].ok()) {
+      prepared[keys[i]] = built[i].value();
+    } else {
+      prepare_error[keys[i]] = (keys[i].first ? "history submap: " : "current submap: ") +
+                               built[i].status().message();
+    }
+  }
+
+  // 3. Global registration of every pair whose submaps could be prepared.
+  ParallelFor(jobs.size(), config_.num_threads, [&](std::size_t i) {
+    Job& job = jobs[i];
+    const auto& source = prepared.at({false, job.current});  // read-only lookups
+    const auto& target = prepared.at({true, job.history});
+    if (source && target) job.reg = registration.value().Register(*source, *target);
+  });
+
+  // 4. Records and the loops waiting for the sequence-consistency check. The preparation time
+  // of a submap is charged to the first pair that needed it.
+  std::vector<Registered, Eigen::aligned_allocator<Registered>> registered;
+  std::set<std::pair<bool, std::size_t>> charged;
+  for (const Job& job : jobs) {
+    LoopRecord& record = result.records[job.record];
+    const Submap& cur = current.submaps[job.current];
+    const Submap& hist = history.submaps[job.history];
+    bool unprepared = false;
+    for (const auto& key : {std::make_pair(false, job.current),
+                                                   std::make_pair(true, job.history)}) {
+      const auto error = prepare_error.find(key);
+      if (error != prepare_error.end() && !unprepared) {
+        record.reason = error->second;
+        unprepared = true;
+      }
+    }
+    if (unprepared) continue;
+    double prepare_s = 0.0;
+    for (const auto& key : {std::make_pair(false, job.current),
+                                                   std::make_pair(true, job.history)}) {
+      if (charged.insert(key).second) prepare_s += GlobalRegistration::PrepareSeconds(*prepared[key]);
+    }
+    const GlobalRegistrationResult& reg = job.reg;
+    result.registration_s.push_back(reg.time_s + prepare_s);
+    record.overlap_ratio = reg.overlap_ratio;
+    record.has_pose = true;
+    record.T_history_current = reg.T_target_source;
+    if (!reg.accepted) {
+      record.reason = "global registration: " + reg.reason;
+      continue;
+    }
+    Registered r;
+    r.loop.current_submap = cur.id;
+    r.loop.history_index = job.history;
+    r.loop.T_history_current = reg.T_target_source;
+    r.loop.information = reg.information;
+    r.loop.vote_proportion = record.vote_proportion;
+    r.loop.overlap_ratio = reg.overlap_ratio;
+    r.record = job.record;
+    r.T_map_session = hist.T_map_submap * reg.T_target_source * cur.T_map_submap.inverse();
+    r.origin = cur.T_map_submap.translation();
+    registered.push_back(r);
+    record.status = LoopStatus::kCandidate;  // decided below
   }
 
   // Sequence consistency: the largest group of loops agreeing with one of them.

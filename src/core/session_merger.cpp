@@ -1,18 +1,17 @@
 #include "multisession_mapper/core/session_merger.h"
 
 #include <algorithm>
-#include <atomic>
 #include <limits>
 #include <chrono>
 #include <cmath>
 #include <map>
 #include <set>
 #include <sstream>
-#include <thread>
 #include <utility>
 
 #include <yaml-cpp/yaml.h>
 
+#include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/voxel_key.h"
 
 namespace multisession_mapper {
@@ -26,24 +25,6 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 bool Finite(double v) { return std::isfinite(v); }
-
-// Runs body(i) for i in [0, n) on up to `threads` threads (the work items are independent).
-template <typename Body>
-void ParallelFor(std::size_t n, int threads, const Body& body) {
-  const std::size_t workers = std::max<std::size_t>(1, std::min<std::size_t>(threads, n));
-  if (workers <= 1) {
-    for (std::size_t i = 0; i < n; ++i) body(i);
-    return;
-  }
-  std::atomic<std::size_t> next{0};
-  std::vector<std::thread> pool;
-  for (std::size_t w = 0; w < workers; ++w) {
-    pool.emplace_back([&] {
-      for (std::size_t i = next++; i < n; i = next++) body(i);
-    });
-  }
-  for (std::thread& t : pool) t.join();
-}
 
 // Occupied voxels of a point set, for "is there a point within about one voxel" tests.
 class VoxelOccupancy {
@@ -217,7 +198,9 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     return Status::Error("cannot merge '" + record.name +
                          "': the place recognizer had no history database to query");
   }
-  StatusOr<InterSessionMatcher> matcher = InterSessionMatcher::Create(config_.matching);
+  InterSessionMatcherConfig matching = config_.matching;
+  matching.num_threads = config_.num_threads;
+  StatusOr<InterSessionMatcher> matcher = InterSessionMatcher::Create(matching);
   if (!matcher.ok()) return matcher.status();
   const auto match_start = std::chrono::steady_clock::now();
   StatusOr<InterSessionMatchResult> matched = matcher.value().Match(*map, session, recognizer);

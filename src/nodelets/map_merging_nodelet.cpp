@@ -70,12 +70,11 @@ class MapMergingNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!map_dir_.empty() && core::MapStore::Exists(map_dir_)) LoadLocked(map_dir_, nullptr);
     }
-    server_ = std::make_unique<dynamic_reconfigure::Server<MapMergingConfig>>(reconfigure_mutex_, pnh);
     MapMergingConfig initial = ros_params::ToMapMergingConfig(merge_);
     // ROS-only parameters: from the launch file when given there.
     pnh.param("idle_finish_s", initial.idle_finish_s, initial.idle_finish_s);
     pnh.param("merged_map_voxel_m", initial.merged_map_voxel_m, initial.merged_map_voxel_m);
-    server_->updateConfig(initial);
+    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
     server_->setCallback([this](MapMergingConfig& c, uint32_t) { Reconfigure(c); });
 
     odom_sub_ = nh.subscribe("odom", 100, &MapMergingNodelet::OnOdom, this);

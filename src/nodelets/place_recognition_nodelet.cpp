@@ -55,9 +55,8 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       LoadHistory();
     }
-    server_ = std::make_unique<dynamic_reconfigure::Server<PlaceRecognitionConfig>>(reconfigure_mutex_, pnh);
     PlaceRecognitionConfig initial = ros_params::ToPlaceRecognitionConfig(config_, matching_);
-    server_->updateConfig(initial);
+    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
     server_->setCallback([this](PlaceRecognitionConfig& c, uint32_t) { Reconfigure(c); });
 
     match_pub_ = nh.advertise<PlaceMatch>("place_matches", 100);

@@ -46,9 +46,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!Restart(core::Pose3::Identity())) return;
     }
-    server_ = std::make_unique<dynamic_reconfigure::Server<ScanMatchingConfig>>(reconfigure_mutex_, pnh);
     ScanMatchingConfig initial = ros_params::ToScanMatchingConfig(config_);
-    server_->updateConfig(initial);
+    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
     server_->setCallback([this](ScanMatchingConfig& c, uint32_t) { Reconfigure(c); });
 
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();

@@ -53,9 +53,8 @@ class SubmapManagerNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!StartSession()) return;
     }
-    server_ = std::make_unique<dynamic_reconfigure::Server<SubmapManagerConfig>>(reconfigure_mutex_, pnh);
     SubmapManagerConfig initial = ros_params::ToSubmapManagerConfig(config_);
-    server_->updateConfig(initial);
+    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
     server_->setCallback([this](SubmapManagerConfig& c, uint32_t) { Reconfigure(c); });
 
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();

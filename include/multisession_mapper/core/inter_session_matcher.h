@@ -50,6 +50,9 @@ struct InterSessionMatcherConfig {
   double neighbour_distance_m = 30.0;
   GlobalRegistrationConfig registration;
   SequenceConsistencyConfig consistency;
+  /// Threads for preparing and registering the candidate pairs. Not a YAML key: SessionMerger
+  /// sets it from map_update.num_threads (one thread budget for the whole merge).
+  int num_threads = 1;
 
   Status Validate() const;
 };

@@ -3,8 +3,11 @@
 // once in the launch file's namespace and found with searchParam from each private namespace.
 #pragma once
 
+#include <memory>
 #include <string>
 
+#include <boost/thread/recursive_mutex.hpp>
+#include <dynamic_reconfigure/server.h>
 #include <ros/node_handle.h>
 
 #include "multisession_mapper/core/pipeline_config.h"
@@ -38,6 +41,20 @@ struct Frames {
   std::string base = "base_link";
 };
 Frames FramesParam(const ros::NodeHandle& pnh);
+
+/// A dynamic_reconfigure server whose very first published configuration is `initial` (the
+/// values of the configuration YAML). The values are put on the parameter server first, where
+/// the server's constructor reads them: setting them only afterwards (updateConfig) left a
+/// moment in which clients saw the .cfg defaults (found by the rostest). The caller sets the
+/// callback afterwards.
+template <class Config>
+std::unique_ptr<dynamic_reconfigure::Server<Config>> StartReconfigureServer(
+    boost::recursive_mutex& mutex, const ros::NodeHandle& pnh, const Config& initial) {
+  initial.__toServer__(pnh);
+  auto server = std::make_unique<dynamic_reconfigure::Server<Config>>(mutex, pnh);
+  server->updateConfig(initial);  // the same values; keeps them if the server clamped any
+  return server;
+}
 
 }  // namespace nodelets
 }  // namespace multisession_mapper
