@@ -28,6 +28,7 @@ MSM_APT_PACKAGES=(
   xvfb imagemagick python3-nav-msgs   # the last one: scripts/rviz_publish_map.py (Path)
   # reliability (issue 9): libFuzzer + sanitizers of scripts/fuzz.sh (clang's runtime libraries)
   clang libclang-rt-14-dev
+  python3-venv                # scripts/bench.d/kiss_icp.sh: the bench virtualenv (KISS-ICP)
 )
 
 msm_install_deps() {
