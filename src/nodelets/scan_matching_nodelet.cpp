@@ -9,6 +9,12 @@
 // single-threaded queue (getNodeHandle / getPrivateNodeHandle); mutex_ additionally guards
 // odometry_, config_ and the restart flag against onInit (the reconfigure server calls back
 // from onInit). Published OdometryResults are immutable once published (shared_ptr<const>).
+// sensor_frame_ is touched only by OnPoints.
+// Bad input: a cloud that cannot be converted (no x/y/z, truncated data, big-endian), one
+// without a usable point, with a stamp not after the previous one, or with another frame_id
+// than the first scan's is skipped with a (throttled) warning naming the problem; mapping
+// goes on with the next scan. After a gap longer than odometry.max_scan_gap_s the motion model
+// is reset. Test: launch/test/bad_input.test.
 #include <memory>
 #include <mutex>
 
@@ -105,6 +111,13 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       NODELET_WARN_STREAM_THROTTLE(5.0, "ScanMatching: scan skipped: " << scan.status().message());
       return;
     }
+    if (sensor_frame_.empty()) sensor_frame_ = msg->header.frame_id;
+    if (msg->header.frame_id != sensor_frame_) {
+      NODELET_WARN_STREAM_THROTTLE(5.0, "ScanMatching: scan skipped: frame_id '"
+                                            << msg->header.frame_id << "' is not the sensor frame '"
+                                            << sensor_frame_ << "' of the first scan");
+      return;
+    }
     std::shared_ptr<core::OdometryResult> result;
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -156,6 +169,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   core::OdometryConfig config_;
   std::unique_ptr<core::Odometry> odometry_;
   std::size_t scans_ = 0;
+  std::string sensor_frame_;  ///< frame_id of the first scan; others are refused
   core::Pose3 T_base_sensor_ = core::Pose3::Identity();
   Frames frames_;
   ros::Subscriber points_sub_;

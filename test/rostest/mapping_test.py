@@ -174,7 +174,7 @@ class MappingLaunchTest(unittest.TestCase):
         self.assertTrue(any("SubmapManager: reconfigured" in l and "submap 4.0 m" in l for l in c.logs),
                         "no reconfigure log line for submap 4.0 m")
 
-        c = self.run_session("s01.bag")
+        c = self.run_session("s01.bag", wait_for_loops=True)
         self.assertGreater(c.counts.get("odom", 0), 30)
         self.assertEqual(c.sessions, {"s01"})
         # Every scan is queried against the first session's database; the route is the same.
