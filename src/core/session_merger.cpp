@@ -470,6 +470,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     }
   }
 
+  report.update_dynamics_s = SecondsSince(update_start);
+  const auto fusion_start = std::chrono::steady_clock::now();
   // ---- Map update: remove, mend, fuse or add. ----
   // History submaps after removal, in the map frame, as voxel occupancy for the fusion tests.
   std::vector<PointVector> history_points(map->submaps.size());
@@ -557,6 +559,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     }
   }
 
+  report.update_fusion_s = SecondsSince(fusion_start);
+  const auto database_start = std::chrono::steady_clock::now();
   // ---- Descriptor database: history plus the scans of the submaps kept as submaps. ----
   StatusOr<DescriptorDatabase> database = CopyDatabase(*recognizer.history());
   if (!database.ok()) return database.status();
@@ -566,6 +570,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   StatusOr<std::string> database_bytes = DatabaseBytes(database.value());
   if (!database_bytes.ok()) return database_bytes.status();
 
+  report.update_database_s = SecondsSince(database_start);
   // ---- Commit (nothing below can fail). ----
   for (std::size_t h = 0; h < map->submaps.size(); ++h) {
     Submap& hs = map->submaps[h];

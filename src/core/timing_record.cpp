@@ -1,5 +1,7 @@
 #include "multisession_mapper/core/timing_record.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -56,9 +58,18 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   out << YAML::Key << "merge_stages_s" << YAML::Value << YAML::Flow << YAML::BeginMap
       << YAML::Key << "matching" << YAML::Value << run.merge_matching_s << YAML::Key
       << "optimisation" << YAML::Value << run.merge_optimisation_s << YAML::Key << "update"
-      << YAML::Value << run.merge_update_s << YAML::EndMap;
+      << YAML::Value << run.merge_update_s << YAML::Key << "update_dynamics" << YAML::Value
+      << run.merge_update_dynamics_s << YAML::Key << "update_fusion" << YAML::Value
+      << run.merge_update_fusion_s << YAML::Key << "update_database" << YAML::Value
+      << run.merge_update_database_s << YAML::EndMap;
   out << YAML::EndMap;
   return std::string(out.c_str()) + "\n";
+}
+
+double ProcessPeakRssMb() {
+  struct rusage usage {};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
+  return usage.ru_maxrss / 1024.0;  // Linux: KiB
 }
 
 }  // namespace core

@@ -213,8 +213,12 @@ class MapMergingNodelet : public nodelet::Nodelet {
     run.merge_matching_s = r.matching_s;
     run.merge_optimisation_s = r.optimisation_s;
     run.merge_update_s = r.update_s;
+    run.merge_update_dynamics_s = r.update_dynamics_s;
+    run.merge_update_fusion_s = r.update_fusion_s;
+    run.merge_update_database_s = r.update_database_s;
     run.merge_s = (ros::WallTime::now() - start).toSec();
     run.wall_time_s = std::max(0.0, (last_input_ - session_start_).toSec()) + run.merge_s;
+    run.peak_rss_mb = core::ProcessPeakRssMb();  // the nodelet manager, all four nodelets
     map_.files["timing/" + record.name + ".yaml"] = core::TimingYaml(timings, run);
     std::ostringstream summary;
     summary << "session '" << r.session << "'" << (r.first_session ? " (first)" : "") << ": "

@@ -5,7 +5,6 @@
 //   offline_mapper --bag day1.bag [--bag day2.bag ...] --map campus_map/ [options]
 // Exit codes: 0 merged, 1 error (input, map or configuration), 2 usage, 3 the session could not
 // be merged (e.g. no consistent overlap with the map); on any error the map is unchanged.
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -56,12 +55,6 @@ int UsageError(const std::string& message) {
   return 2;
 }
 
-double PeakRssMb() {
-  struct rusage usage;
-  getrusage(RUSAGE_SELF, &usage);
-  return usage.ru_maxrss / 1024.0;
-}
-
 std::string UtcNow() {
   char buffer[32];
   const std::time_t now = std::time(nullptr);
@@ -96,11 +89,13 @@ void PrintMergeReport(const core::MergeReport& report) {
                "%s merged: %zu submaps voted to a candidate, %zu undefined; %zu inter-session "
                "loops + %zu proximity loops; %zu submaps added, %zu fused; %zu dynamic points "
                "removed, %zu mended, %zu fused points added; matching %.1f s, optimisation %.1f s, "
-               "dynamics %.2f s/pair median, update %.1f s\n",
+               "dynamics %.2f s/pair median, update %.1f s (detection %.1f, fusion %.1f, "
+               "database %.1f)\n",
                report.session.c_str(), matched, undefined, report.inter_loops,
                report.proximity_loops, report.submaps_added, report.submaps_fused,
                report.points_removed, report.points_mended, report.points_fused,
-               report.matching_s, report.optimisation_s, pairs.median, report.update_s);
+               report.matching_s, report.optimisation_s, pairs.median, report.update_s,
+               report.update_dynamics_s, report.update_fusion_s, report.update_database_s);
 }
 
 // Maps one bag and adds it to the map directory (first session or merge); returns the exit
@@ -216,10 +211,13 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   run.merge_matching_s = merged.value().matching_s;
   run.merge_optimisation_s = merged.value().optimisation_s;
   run.merge_update_s = merged.value().update_s;
+  run.merge_update_dynamics_s = merged.value().update_dynamics_s;
+  run.merge_update_fusion_s = merged.value().update_fusion_s;
+  run.merge_update_database_s = merged.value().update_database_s;
   run.bag_duration_s = record.duration_s;
   run.merge_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - merge_start).count();
   run.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  run.peak_rss_mb = PeakRssMb();
+  run.peak_rss_mb = core::ProcessPeakRssMb();
   map.files["timing/" + name + ".yaml"] = core::TimingYaml(result.value().timings, run);
   const core::Status saved = store.Save(map, options.map_dir);
   if (!saved.ok()) {

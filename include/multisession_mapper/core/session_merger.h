@@ -98,6 +98,11 @@ struct MergeReport {
   double matching_s = 0.0;
   double optimisation_s = 0.0;
   double update_s = 0.0;
+  /// Parts of update_s [s]: dynamic detection of all pairs (wall time, in parallel), removal
+  /// / mending / fusion, descriptor database, and the rest (change records, trajectories).
+  double update_dynamics_s = 0.0;
+  double update_fusion_s = 0.0;
+  double update_database_s = 0.0;
   double total_s = 0.0;
 };
 

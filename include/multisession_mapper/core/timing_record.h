@@ -27,9 +27,17 @@ struct SessionRunInfo {
   double merge_matching_s = 0.0;      ///< voting, global registration, consistency [s]
   double merge_optimisation_s = 0.0;  ///< joint graph and the proximity loop search [s]
   double merge_update_s = 0.0;        ///< dynamic detection and map update [s]
+  /// Parts of merge_update_s [s] (MergeReport::update_*_s).
+  double merge_update_dynamics_s = 0.0;
+  double merge_update_fusion_s = 0.0;
+  double merge_update_database_s = 0.0;
 };
 
 std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run);
+
+/// Peak resident set size of this process so far [MB] (getrusage; in a nodelet manager: the
+/// whole manager process, all nodelets).
+double ProcessPeakRssMb();
 
 }  // namespace core
 }  // namespace multisession_mapper
