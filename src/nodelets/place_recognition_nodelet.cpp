@@ -1,7 +1,11 @@
 // PlaceRecognitionNodelet: a descriptor per scan, queried live against the stored map's
 // database, and the vote per finished submap (core::PlaceRecognizer, core::SubmapVoting).
-//   in:  scan_in_submap (in-process), submaps (SubmapInfo: votes once per new submap id),
+//   in:  scan_in_submap (in-process), submaps (SubmapInfo: the submap origins shown),
 //        finished_session (in-process), map_changed (std_msgs/String: reload the database)
+//   Votes: a submap is voted on once, when the scan stream moves on to a later submap (its
+//   scans are then complete) or when the session finishes. The votes depend only on the
+//   in-process scan stream, not on when SubmapInfo arrives (it could arrive after the
+//   finished_session message, or, in the rostest, not reach this nodelet at all).
 //   out: place_matches (PlaceMatch per scan; only while a history database exists),
 //        loop_candidates (LoopCandidateArray, latched: all inter-session candidates and
 //        undefined submaps of the session so far), finished_recognition (in-process: the
@@ -109,6 +113,8 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
     recognizer_ = std::make_unique<core::PlaceRecognizer>(std::move(r.value()));
     session_ = session;
     voted_.clear();
+    seen_.clear();
+    origins_.clear();
     candidates_ = LoopCandidateArray();
     return true;
   }
@@ -138,6 +144,17 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
     if (!recognizer_ || session_ != msg->session) {
       if (!StartRecognizer(msg->session)) return;
     }
+    // The scans of every earlier submap are complete once a later submap's scan arrives.
+    for (std::uint32_t id : seen_) {
+      if (id < msg->submap_id) VoteLocked(id, msg->header.stamp);
+    }
+    if (seen_.insert(msg->submap_id).second) {
+      geometry_msgs::Point origin;  // until SubmapInfo gives the optimised one: first scan pose
+      origin.x = msg->odometry->pose.translation().x();
+      origin.y = msg->odometry->pose.translation().y();
+      origin.z = msg->odometry->pose.translation().z();
+      origins_.emplace(msg->submap_id, origin);
+    }
     const core::Status s = recognizer_->AddScan(msg->odometry->deskewed_scan, msg->submap_id);
     if (!s.ok()) {
       NODELET_WARN_STREAM_THROTTLE(5.0, "PlaceRecognition: " << s.message());
@@ -165,20 +182,30 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
     match_pub_.publish(match);
   }
 
-  // Votes once per newly finished submap of the current session.
+  // Keeps the submap's (optimised) origin for the candidates shown.
   void OnSubmap(const SubmapInfo::ConstPtr& info) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!recognizer_ || !history_ || info->session != session_ || !voted_.insert(info->id).second) return;
+    if (info->session != session_) return;
+    origins_[info->id] = info->origin.position;
+  }
+
+  // Votes once for submap `id` of the current session (mutex_ held).
+  void VoteLocked(std::uint32_t id, const ros::Time& stamp) {
+    if (!recognizer_ || !history_ || !voted_.insert(id).second) return;
     core::StatusOr<core::SubmapVoting> voting = core::SubmapVoting::Create(matching_.voting);
-    if (!voting.ok()) return;
+    if (!voting.ok()) {
+      NODELET_WARN_STREAM_THROTTLE(5.0, "PlaceRecognition: " << voting.status().message());
+      return;
+    }
     const core::SubmapVoteResult vote = voting.value().Vote(
-        recognizer_->VotesOf(info->id),
+        recognizer_->VotesOf(id),
         core::SubmapVoting::OriginsWithin(history_origins_, matching_.neighbour_distance_m));
+    const geometry_msgs::Point current_origin = origins_[id];
     auto add = [&](const core::HistorySubmapId* history, double proportion) {
       core::LoopRecord record;
       record.kind = core::LoopKind::kInter;
       record.current_session = session_;
-      record.current_submap = info->id;
+      record.current_submap = id;
       record.status = history ? core::LoopStatus::kCandidate : core::LoopStatus::kUndefined;
       record.vote_proportion = proportion;
       record.reason = vote.reason;
@@ -194,8 +221,8 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
         }
       }
       candidates_.candidates.push_back(conversions::ToLoopCandidateMsg(record));
-      candidates_.current_origins.push_back(info->origin.position);
-      candidates_.history_origins.push_back(history ? history_origin : info->origin.position);
+      candidates_.current_origins.push_back(current_origin);
+      candidates_.history_origins.push_back(history ? history_origin : current_origin);
     };
     if (vote.candidates.empty()) {
       add(nullptr, vote.proportions.empty() ? 0.0 : vote.proportions.front().proportion);
@@ -207,10 +234,10 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
       }
       add(&h, proportion);
     }
-    NODELET_INFO("PlaceRecognition: submap %u: %s (%d of %d scans matched) %s", info->id,
+    NODELET_INFO("PlaceRecognition: submap %u: %s (%d of %d scans matched) %s", id,
                  core::VoteOutcomeName(vote.outcome), vote.scans_matched, vote.scans_total,
                  vote.reason.c_str());
-    candidates_.header.stamp = info->header.stamp;
+    candidates_.header.stamp = stamp;
     candidates_.header.frame_id = frames_.map;
     candidates_pub_.publish(candidates_);
   }
@@ -222,6 +249,7 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
     out->voting = matching_.voting;
     out->neighbour_distance_m = matching_.neighbour_distance_m;
     if (recognizer_ && session_ == finished->session) {
+      for (std::uint32_t id : seen_) VoteLocked(id, ros::Time::now());  // the last submaps
       out->recognizer = std::shared_ptr<const core::PlaceRecognizer>(std::move(recognizer_));
     } else {
       // No scan reached this nodelet: an empty recognizer keeps the merge well-defined.
@@ -248,7 +276,9 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
   std::map<core::HistorySubmapId, Eigen::Vector3d> history_origins_;
   std::unique_ptr<core::PlaceRecognizer> recognizer_;
   std::string session_;
-  std::set<std::uint32_t> voted_;
+  std::set<std::uint32_t> voted_;  ///< submaps of this session already voted on
+  std::set<std::uint32_t> seen_;   ///< submaps of this session with scans
+  std::map<std::uint32_t, geometry_msgs::Point> origins_;  ///< current submap origins shown
   LoopCandidateArray candidates_;
   Frames frames_;
   ros::Subscriber scan_sub_, info_sub_, finished_sub_, map_sub_;
