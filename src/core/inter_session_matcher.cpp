@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/inter_session_matcher.h"
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -182,20 +183,16 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
     LoopRecord& record = result.records[job.record];
     const Submap& cur = current.submaps[job.current];
     const Submap& hist = history.submaps[job.history];
-    bool unprepared = false;
-    for (const auto& key : {std::make_pair(false, job.current),
-                                                   std::make_pair(true, job.history)}) {
-      const auto error = prepare_error.find(key);
-      if (error != prepare_error.end() && !unprepared) {
-        record.reason = error->second;
-        unprepared = true;
-      }
+    const std::pair<bool, std::size_t> keys[] = {{false, job.current}, {true, job.history}};
+    const auto* unprepared = std::find_if(std::begin(keys), std::end(keys),
+                                          [&](const auto& key) { return !prepared.at(key); });
+    if (unprepared != std::end(keys)) {
+      record.reason = prepare_error.at(*unprepared);
+      continue;
     }
-    if (unprepared) continue;
     double prepare_s = 0.0;
-    for (const auto& key : {std::make_pair(false, job.current),
-                                                   std::make_pair(true, job.history)}) {
-      if (charged.insert(key).second) prepare_s += GlobalRegistration::PrepareSeconds(*prepared[key]);
+    for (const auto& key : keys) {
+      if (charged.insert(key).second) prepare_s += GlobalRegistration::PrepareSeconds(*prepared.at(key));
     }
     const GlobalRegistrationResult& reg = job.reg;
     result.registration_s.push_back(reg.time_s + prepare_s);

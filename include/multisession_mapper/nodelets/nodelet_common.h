@@ -52,7 +52,8 @@ std::unique_ptr<dynamic_reconfigure::Server<Config>> StartReconfigureServer(
     boost::recursive_mutex& mutex, const ros::NodeHandle& pnh, const Config& initial) {
   initial.__toServer__(pnh);
   auto server = std::make_unique<dynamic_reconfigure::Server<Config>>(mutex, pnh);
-  server->updateConfig(initial);  // the same values; keeps them if the server clamped any
+  server->updateConfig(initial);  // the same values again, in case one did not survive the
+                                  // parameter server round trip
   return server;
 }
 
