@@ -54,6 +54,10 @@ Status OdometryConfig::Validate() const {
     return Status::Error(
         "odometry.refine_min_translation_m / refine_min_rotation_rad must be >= 0");
   }
+  if (velocity_window_scans < 1) {
+    return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
+                         std::to_string(velocity_window_scans));
+  }
   if (!std::isfinite(max_scan_gap_s) || max_scan_gap_s <= 0.0) {
     return Status::Error("odometry.max_scan_gap_s must be > 0, got " +
                          std::to_string(max_scan_gap_s));
@@ -164,7 +168,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
 
   se3::Vector6d estimated_velocity = velocity;
   if (result.registered && continuous && dt > 0.0) {
-    estimated_velocity = Deskewer::VelocityFromMotion(se3::Between(pose_, estimate), dt);
+    estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
     // The prediction's velocity was wrong over this sweep (start, sharp turn): de-skew again
     // with the estimated one and refine, so that the map only receives well de-skewed points.
     const double sweep_s = result.deskew_stats.max_time_offset_s;
@@ -178,7 +182,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       if (refined.ok()) {
         result.icp = refined.value();
         estimate = refined.value().pose;
-        estimated_velocity = Deskewer::VelocityFromMotion(se3::Between(pose_, estimate), dt);
+        estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
       }
       result.refined = true;
       result.timing.registration_ms += watch.Lap();
@@ -216,8 +220,27 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   stamped.stamp_s = scan.stamp_s;
   stamped.pose = estimate;
   trajectory_.push_back(stamped);
+  if (!continuous) recent_.clear();  // the window never spans a gap
+  recent_.push_back(stamped);
+  while (recent_.size() > static_cast<std::size_t>(config_.velocity_window_scans)) {
+    recent_.pop_front();
+  }
   result.timing.total_ms = total.Lap();
   return result;
+}
+
+// Why a window: with the velocity of the last interval only, an along-track pose error e_k
+// of scan k gives the next scan a velocity error (e_k - e_{k-1}) / dt, and de-skewing with it
+// shears that scan so that ICP moves it by about half of that the other way:
+// e_{k+1} ~ -(e_k - e_{k-1}) / 2, whose characteristic roots are 0.5 and -1, an oscillation
+// that never decays. Over n intervals it is e_{k+1} ~ -(e_k - e_{k-n}) / (2n), stable for
+// n >= 2. A constant twist has the same body-frame coordinates along the whole motion, so the
+// mean over the window needs no change of frame.
+se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) const {
+  if (recent_.empty()) return se3::Vector6d::Zero();
+  const StampedPose& oldest = recent_.front();
+  return Deskewer::VelocityFromMotion(se3::Between(oldest.pose, estimate),
+                                      stamp_s - oldest.stamp_s);
 }
 
 void Odometry::InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose) {
