@@ -267,6 +267,8 @@ Status SessionMapper::AddScan(const LidarScan& raw_scan) {
   return st.AddOdometryResult(std::move(result.value()));
 }
 
+void SessionMapper::CountSkippedScan() { ++state_->skipped; }
+
 Status SessionMapper::AddRegisteredScan(const OdometryResult& registered) {
   State& st = *state_;
   if (!st.split_odometry.empty() && !(registered.stamp_s > st.split_odometry.back().stamp_s)) {

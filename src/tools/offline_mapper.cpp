@@ -19,6 +19,7 @@
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/session_merger.h"
 #include "multisession_mapper/core/pipeline_config.h"
+#include "multisession_mapper/core/odometry_worker.h"
 #include "multisession_mapper/core/place_recognizer.h"
 #include "multisession_mapper/core/session_mapper.h"
 #include "multisession_mapper/core/timing_record.h"
@@ -151,6 +152,40 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   msm::tools::Progress progress(name, total, "scans", !options.quiet);
   std::size_t bad_scans = 0;
   double last_stamp_s = 0.0;
+  // The odometry runs on its own thread (OdometryWorker), one scan ahead of the submap
+  // building and place recognition here; results are the same as with SessionMapper::AddScan.
+  core::StatusOr<std::unique_ptr<core::OdometryWorker>> odometry =
+      core::OdometryWorker::Create(config.session.odometry);
+  if (!odometry.ok()) {
+    std::fprintf(stderr, "offline_mapper: %s\n", odometry.status().message().c_str());
+    return 1;
+  }
+  std::vector<std::size_t> pending_index;  // bag index of each scan in the worker, in order
+  std::size_t next_pending = 0;
+  const auto report = [&](std::size_t index, const core::Status& status) {
+    if (!status.ok() && ++bad_scans <= 5) {
+      std::fprintf(stderr, "\noffline_mapper: scan %zu skipped: %s\n", index,
+                   status.message().c_str());
+    }
+  };
+  // Builds submaps and descriptors from the worker's results that are ready (all with wait).
+  const auto drain = [&](bool wait) {
+    while (auto result = odometry.value()->Pop(wait)) {
+      const std::size_t index = pending_index[next_pending++];
+      core::Status status = result->status();
+      if (!result->ok()) {
+        mapper.value().CountSkippedScan();
+      } else {
+        status = mapper.value().AddRegisteredScan(result->value());
+        if (status.ok()) {
+          status = recognizer.value().AddScan(result->value().deskewed_scan,
+                                              mapper.value().current_submap_id());
+        }
+      }
+      report(index, status);
+      progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
+    }
+  };
   const core::Status read = reader.value().ForEach(
       [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
         if (options.max_scans > 0 && index >= static_cast<std::size_t>(options.max_scans)) return false;
@@ -161,19 +196,18 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
                        "odometry.max_scan_gap_s): the motion model restarts\n",
                        scan.value().stamp_s - last_stamp_s, index);
         }
-        if (scan.ok()) last_stamp_s = scan.value().stamp_s;
-        core::Status status = scan.ok() ? mapper.value().AddScan(scan.value()) : scan.status();
-        if (status.ok()) {
-          status = recognizer.value().AddScan(mapper.value().last_odometry()->deskewed_scan,
-                                              mapper.value().current_submap_id());
+        if (scan.ok()) {
+          last_stamp_s = scan.value().stamp_s;
+          pending_index.push_back(index);
+          odometry.value()->Push(scan.value());
+        } else {
+          mapper.value().CountSkippedScan();
+          report(index, scan.status());
         }
-        if (!status.ok() && ++bad_scans <= 5) {
-          std::fprintf(stderr, "\noffline_mapper: scan %zu skipped: %s\n", index,
-                       status.message().c_str());
-        }
-        progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
+        drain(false);
         return true;
       });
+  drain(true);
   progress.Finish();
   if (!read.ok()) {
     std::fprintf(stderr, "offline_mapper: %s; the map was not changed\n", read.message().c_str());

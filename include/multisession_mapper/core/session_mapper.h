@@ -113,6 +113,9 @@ class SessionMapper {
   /// (and changes nothing) when the stamp does not increase. Do not mix with AddScan in one
   /// session.
   Status AddRegisteredScan(const OdometryResult& registered);
+  /// Counts a scan that the outside odometry refused (its ProcessScan error) as skipped, as
+  /// AddScan does for its own odometry.
+  void CountSkippedScan();
 
   /// Applies `config` from the next scan / finished submap on (live tuning). Everything but
   /// `odometry` applies (submap builder, in-session dynamics, intra-session loops, pose graph,
