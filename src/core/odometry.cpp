@@ -235,12 +235,19 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
 // e_{k+1} ~ -(e_k - e_{k-1}) / 2, whose characteristic roots are 0.5 and -1, an oscillation
 // that never decays. Over n intervals it is e_{k+1} ~ -(e_k - e_{k-n}) / (2n), stable for
 // n >= 2. A constant twist has the same body-frame coordinates along the whole motion, so the
-// mean over the window needs no change of frame.
+// mean over the window needs no change of frame. The rotation rate is the last interval's
+// unless window_rotation (see the config).
 se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) const {
   if (recent_.empty()) return se3::Vector6d::Zero();
   const StampedPose& oldest = recent_.front();
-  return Deskewer::VelocityFromMotion(se3::Between(oldest.pose, estimate),
-                                      stamp_s - oldest.stamp_s);
+  se3::Vector6d velocity = Deskewer::VelocityFromMotion(se3::Between(oldest.pose, estimate),
+                                                        stamp_s - oldest.stamp_s);
+  if (config_.window_rotation) return velocity;
+  const StampedPose& newest = recent_.back();
+  velocity.tail<3>() = Deskewer::VelocityFromMotion(se3::Between(newest.pose, estimate),
+                                                    stamp_s - newest.stamp_s)
+                           .tail<3>();
+  return velocity;
 }
 
 void Odometry::InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose) {

@@ -33,6 +33,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "max_scan_gap_s", &s.odometry.max_scan_gap_s},
       {"odometry", "deskew_enabled", &s.odometry.deskew.enabled},
       {"odometry", "velocity_window_scans", &s.odometry.velocity_window_scans},
+      {"odometry", "window_rotation", &s.odometry.window_rotation},
       {"odometry", "refine_deskew", &s.odometry.refine_deskew},
       {"odometry", "use_scan_normals", &s.odometry.use_scan_normals},
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},

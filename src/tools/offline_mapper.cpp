@@ -39,7 +39,9 @@ const char kUsage[] =
     "  --config FILE     pipeline configuration YAML (defaults: cfg/default.yaml)\n"
     "  --session NAME    session name (default: the bag's file name without extension)\n"
     "  --max-scans N     stop each session after N scans (0: all)\n"
-    "  --quiet           no progress output\n";
+    "  --quiet           no progress output\n"
+    "  --sequential      odometry and submap building in one thread (default: the odometry\n"
+    "                    runs one scan ahead on a second thread; same result either way)\n";
 
 struct Options {
   std::vector<std::string> bags;
@@ -49,6 +51,7 @@ struct Options {
   std::string session;
   long long max_scans = 0;
   bool quiet = false;
+  bool sequential = false;
 };
 
 int UsageError(const std::string& message) {
@@ -204,7 +207,7 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
           mapper.value().CountSkippedScan();
           report(index, scan.status());
         }
-        drain(false);
+        drain(options.sequential);
         return true;
       });
   drain(true);
@@ -298,6 +301,8 @@ int main(int argc, char** argv) {
       }
     } else if (arg == "--quiet") {
       options.quiet = true;
+    } else if (arg == "--sequential") {
+      options.sequential = true;
     } else if (arg == "-h" || arg == "--help") {
       std::fputs(kUsage, stdout);
       return 0;
