@@ -1,10 +1,12 @@
 // Runs an Odometry on its own thread so that the odometry of scan k+1 overlaps the submap
-// building and place recognition of scan k (the offline runner's pipeline: about half the
-// wall time of running both in one thread on 2 cores). Results come back in input order and
-// are exactly those of Odometry::ProcessScan called in the same order.
+// building and place recognition of scan k (the offline runner's pipeline: the first 1500
+// campus s00 scans in 75-80 s against 101-107 s with `offline_mapper --sequential`, idle
+// 2-core machine, two runs each). Results
+// come back in input order and are exactly those of Odometry::ProcessScan called in the same
+// order.
 //
 // Ownership: the Odometry and the queues belong to this object; the worker thread touches
-// the Odometry only, and the queues only under mutex_. Push/Pop/Finish are called from one
+// the Odometry only, and the queues only under mutex_. Push/Pop/pending are called from one
 // (the owner's) thread.
 #pragma once
 
