@@ -5,6 +5,8 @@
 #include <limits>
 #include <map>
 
+#include "multisession_mapper/core/fast_atan2.h"
+
 namespace multisession_mapper {
 namespace core {
 
@@ -28,27 +30,42 @@ Status RangeImageConfig::Validate() const {
 }
 
 namespace {
-double Elevation(const Eigen::Vector3f& p) {
-  return std::atan2(static_cast<double>(p.z()), std::hypot(p.x(), p.y()));
+// tan(elevation) of a point: monotone in the elevation, so ring lookups compare tangents and
+// need no atan per point. NaN straight above or below the sensor (no ring there).
+double ElevationTangent(double x, double y, double z) {
+  const double horizontal = std::sqrt(x * x + y * y);
+  return horizontal > 1e-9 ? z / horizontal : std::numeric_limits<double>::quiet_NaN();
+}
+double ElevationTangent(const Eigen::Vector3f& p) { return ElevationTangent(p.x(), p.y(), p.z()); }
+double TanClamped(double angle_rad) {
+  const double limit = M_PI_2 - 1e-6;
+  return std::tan(std::max(-limit, std::min(limit, angle_rad)));
 }
 }  // namespace
 
-RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config) : config_(config) {
+RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config)
+    : config_(config), inv_azimuth_resolution_(1.0 / config.azimuth_resolution_rad) {
   columns_ = static_cast<int>(std::ceil(2.0 * M_PI / config_.azimuth_resolution_rad));
-  // Ring elevations: a ring's beam is a cone of fixed elevation.
+  // Ring elevations: a ring's beam is a cone of fixed elevation. The median of the tangents
+  // is the tangent of the median elevation.
   if (scan.has_ring) {
     std::map<int, std::vector<double>> by_ring;
-    for (const LidarPoint& p : scan.points) by_ring[p.ring].push_back(Elevation(p.position_m));
-    for (auto& [ring, elevations] : by_ring) {
-      std::nth_element(elevations.begin(), elevations.begin() + elevations.size() / 2,
-                       elevations.end());
-      ring_elevations_rad_.push_back(elevations[elevations.size() / 2]);
+    for (const LidarPoint& p : scan.points) {
+      const double t = ElevationTangent(p.position_m);
+      if (std::isfinite(t)) by_ring[p.ring].push_back(t);
+    }
+    for (auto& [ring, tangents] : by_ring) {
+      std::nth_element(tangents.begin(), tangents.begin() + tangents.size() / 2, tangents.end());
+      ring_elevations_rad_.push_back(std::atan(tangents[tangents.size() / 2]));
     }
     std::sort(ring_elevations_rad_.begin(), ring_elevations_rad_.end());
   } else {
     std::vector<double> elevations;
     elevations.reserve(scan.points.size());
-    for (const LidarPoint& p : scan.points) elevations.push_back(Elevation(p.position_m));
+    for (const LidarPoint& p : scan.points) {
+      const double t = ElevationTangent(p.position_m);
+      if (std::isfinite(t)) elevations.push_back(std::atan(t));
+    }
     std::sort(elevations.begin(), elevations.end());
     std::size_t start = 0;
     for (std::size_t i = 1; i <= elevations.size(); ++i) {
@@ -59,32 +76,42 @@ RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config) : 
       }
     }
   }
+  for (const double elevation : ring_elevations_rad_) {
+    ring_tangents_.push_back(std::tan(elevation));
+    gate_low_tangents_.push_back(TanClamped(elevation - config_.elevation_tolerance_rad));
+    gate_high_tangents_.push_back(TanClamped(elevation + config_.elevation_tolerance_rad));
+  }
   ranges_m_.assign(ring_elevations_rad_.size() * columns_, 0.0f);
   for (const LidarPoint& p : scan.points) {
-    const double elevation = Elevation(p.position_m);
-    const int ring = RingOf(elevation);
+    const int ring = RingOfTangent(ElevationTangent(p.position_m));
     if (ring < 0) continue;
-    double azimuth = std::atan2(static_cast<double>(p.position_m.y()), p.position_m.x());
-    if (azimuth < 0) azimuth += 2.0 * M_PI;
-    const int column = std::min(columns_ - 1, static_cast<int>(azimuth / config_.azimuth_resolution_rad));
-    float& cell = ranges_m_[static_cast<std::size_t>(ring) * columns_ + column];
+    float& cell = ranges_m_[static_cast<std::size_t>(ring) * columns_ +
+                            ColumnOf(p.position_m.x(), p.position_m.y())];
     const float range = p.position_m.norm();
     if (cell == 0.0f || range < cell) cell = range;
   }
 }
 
-int RangeImage::RingOf(double elevation_rad) const {
-  if (ring_elevations_rad_.empty()) return -1;
-  const auto it =
-      std::lower_bound(ring_elevations_rad_.begin(), ring_elevations_rad_.end(), elevation_rad);
+int RangeImage::ColumnOf(double x, double y) const {
+  double azimuth = FastAtan2(y, x);
+  if (azimuth < 0) azimuth += 2.0 * M_PI;
+  return std::min(columns_ - 1, static_cast<int>(azimuth * inv_azimuth_resolution_));
+}
+
+int RangeImage::RingOfTangent(double tangent) const {
+  if (ring_tangents_.empty() || !std::isfinite(tangent)) return -1;
+  const auto it = std::lower_bound(ring_tangents_.begin(), ring_tangents_.end(), tangent);
+  const int above = static_cast<int>(it - ring_tangents_.begin());
+  // The nearest ring below or above, if the tangent is inside its elevation gate.
   int best = -1;
-  double best_diff = config_.elevation_tolerance_rad;
-  for (auto candidate : {it, it == ring_elevations_rad_.begin() ? it : it - 1}) {
-    if (candidate == ring_elevations_rad_.end()) continue;
-    const double diff = std::abs(*candidate - elevation_rad);
-    if (diff <= best_diff) {
+  double best_diff = std::numeric_limits<double>::infinity();
+  for (const int ring : {above, above - 1}) {
+    if (ring < 0 || ring >= static_cast<int>(ring_tangents_.size())) continue;
+    if (tangent < gate_low_tangents_[ring] || tangent > gate_high_tangents_[ring]) continue;
+    const double diff = std::abs(ring_tangents_[ring] - tangent);
+    if (diff < best_diff) {
       best_diff = diff;
-      best = static_cast<int>(candidate - ring_elevations_rad_.begin());
+      best = ring;
     }
   }
   return best;
@@ -104,13 +131,9 @@ float RangeImage::MeasuredRange(int ring, int column, double point_range_m) cons
 }
 
 Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_m) const {
-  if (ring_elevations_rad_.empty()) return Visibility::kUnknown;
-  const double horizontal = std::hypot(point_sensor.x(), point_sensor.y());
-  const double elevation = std::atan2(point_sensor.z(), horizontal);
-  double azimuth = std::atan2(point_sensor.y(), point_sensor.x());
-  if (azimuth < 0) azimuth += 2.0 * M_PI;
-  const int column =
-      std::min(columns_ - 1, static_cast<int>(azimuth / config_.azimuth_resolution_rad));
+  if (ring_tangents_.empty()) return Visibility::kUnknown;
+  const double tangent = ElevationTangent(point_sensor.x(), point_sensor.y(), point_sensor.z());
+  if (!std::isfinite(tangent)) return Visibility::kUnknown;
   const double range = point_sensor.norm();
   auto classify = [&](float measured) {
     if (measured <= 0.0f) return Visibility::kUnknown;
@@ -120,21 +143,23 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
   };
 
   // On a beam: that beam decides.
-  const int ring = RingOf(elevation);
-  if (ring >= 0) return classify(MeasuredRange(ring, column, range));
+  const int ring = RingOfTangent(tangent);
+  if (ring >= 0) {
+    return classify(MeasuredRange(ring, ColumnOf(point_sensor.x(), point_sensor.y()), range));
+  }
 
   // Between two beams: free only when both passed beyond the point. On ground seen at a
   // grazing angle the lower beam lands in front of the point, so ground is never "free".
-  const auto upper =
-      std::upper_bound(ring_elevations_rad_.begin(), ring_elevations_rad_.end(), elevation);
-  if (upper == ring_elevations_rad_.begin() || upper == ring_elevations_rad_.end()) {
+  const auto upper = std::upper_bound(ring_tangents_.begin(), ring_tangents_.end(), tangent);
+  if (upper == ring_tangents_.begin() || upper == ring_tangents_.end()) {
     return Visibility::kUnknown;  // outside the vertical field of view
   }
-  const int hi = static_cast<int>(upper - ring_elevations_rad_.begin());
+  const int hi = static_cast<int>(upper - ring_tangents_.begin());
   const int lo = hi - 1;
   if (ring_elevations_rad_[hi] - ring_elevations_rad_[lo] > config_.max_ring_gap_rad) {
     return Visibility::kUnknown;
   }
+  const int column = ColumnOf(point_sensor.x(), point_sensor.y());
   const Visibility a = classify(MeasuredRange(lo, column, range));
   const Visibility b = classify(MeasuredRange(hi, column, range));
   if (a == Visibility::kSeenThrough && b == Visibility::kSeenThrough) return Visibility::kSeenThrough;

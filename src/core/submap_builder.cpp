@@ -65,7 +65,7 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
   const Pose3 T_sensor_submap = T_odom_sensor.inverse() * open->submap.T_map_submap;
   const Eigen::Vector3d sensor_in_submap = T_sensor_submap.inverse().translation();
   const double max_range_sq = c.max_check_range_m * c.max_check_range_m;
-  for (auto& [key, voxel] : open->voxels) {
+  for (VoxelPoint& voxel : open->voxels) {
     const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
     if ((p_submap - sensor_in_submap).squaredNorm() > max_range_sq) continue;
     const Eigen::Vector3d p_sensor = T_sensor_submap * p_submap;
@@ -120,11 +120,22 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   record.T_submap_sensor = se3::Between(current.submap.T_map_submap, T_odom_sensor);
   current.submap.scans.push_back(record);
   const double max_range_sq = config_.max_point_range_m * config_.max_point_range_m;
+  // Successive points of a ring often share a voxel: look the key up only when it changes.
+  VoxelKey last_key(std::numeric_limits<int>::min(), 0, 0);
+  std::uint32_t last_index = 0;
   for (const LidarPoint& p : deskewed_scan.points) {
     const Eigen::Vector3d p_sensor = p.position_m.cast<double>();
     if (!p_sensor.allFinite() || p_sensor.squaredNorm() > max_range_sq) continue;
     const Eigen::Vector3d p_submap = record.T_submap_sensor * p_sensor;
-    VoxelPoint& voxel = current.voxels[ToVoxelKey(p_submap, config_.voxel_size_m)];
+    const VoxelKey key = ToVoxelKey(p_submap, config_.voxel_size_m);
+    if (key != last_key) {
+      const auto inserted =
+          current.voxel_index.try_emplace(key, static_cast<std::uint32_t>(current.voxels.size()));
+      if (inserted.second) current.voxels.emplace_back();
+      last_key = key;
+      last_index = inserted.first->second;
+    }
+    VoxelPoint& voxel = current.voxels[last_index];
     voxel.sum += p_submap;
     ++voxel.count;
   }
@@ -146,7 +157,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   Submap& submap = open->submap;
   submap.points.clear();
   submap.points.reserve(open->voxels.size());
-  for (const auto& [key, voxel] : open->voxels) {
+  for (const VoxelPoint& voxel : open->voxels) {
     const bool mostly_free =
         voxel.seen_through >= c.min_seen_through &&
         voxel.seen_through > c.min_seen_through_ratio * (voxel.seen_through + voxel.consistent);
@@ -160,7 +171,8 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     submap.points.push_back(voxel.sum / voxel.count);
     ++stats_.voxels_kept;
   }
-  open->voxels.clear();
+  open->voxels = {};
+  open->voxel_index = {};
   ++stats_.submaps_finished;
   finished_.push_back(std::move(submap));
 }

@@ -61,13 +61,21 @@ class RangeImage {
   const std::vector<double>& ring_elevations_rad() const { return ring_elevations_rad_; }
 
  private:
-  int RingOf(double elevation_rad) const;
+  /// Ring whose elevation gate holds a point of this elevation tangent (z / horizontal
+  /// distance), -1 if none.
+  int RingOfTangent(double tangent) const;
+  /// Azimuth column of a direction (x, y) in the sensor frame.
+  int ColumnOf(double x, double y) const;
   /// Measured range at a pixel; +inf for free space without return (see config), 0 unknown.
   float MeasuredRange(int ring, int column, double point_range_m) const;
 
   RangeImageConfig config_;
   int columns_ = 0;
+  double inv_azimuth_resolution_ = 0.0;
   std::vector<double> ring_elevations_rad_;  ///< ascending
+  std::vector<double> ring_tangents_;        ///< tan of ring_elevations_rad_, ascending
+  std::vector<double> gate_low_tangents_;    ///< tan(elevation - elevation_tolerance_rad)
+  std::vector<double> gate_high_tangents_;   ///< tan(elevation + elevation_tolerance_rad)
   std::vector<float> ranges_m_;              ///< rings x columns, 0 = no return
 };
 

@@ -103,7 +103,10 @@ class SubmapBuilder {
   };
   struct OpenSubmap {
     Submap submap;
-    VoxelMap<VoxelPoint> voxels;
+    /// Voxels in a flat array (the visibility checks sweep all of them, every check) and
+    /// their index by voxel key.
+    std::vector<VoxelPoint> voxels;
+    VoxelMap<std::uint32_t> voxel_index;
     bool full = false;           ///< a newer submap has started; only checks remain
     double tail_driven_m = 0.0;  ///< driving since it became full
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
