@@ -94,6 +94,32 @@ TEST(IcpRegistrationTest, RecoversKnownTransformAgainstVoxelMap) {
   ExpectPoseNear(result.value().pose, pair.T_a_b, 0.02, 0.1 * kDeg);
 }
 
+TEST(IcpRegistrationTest, ReassociationSearchesLessAndLandsOnTheSamePose) {
+  const SyntheticPair pair = MakePair();
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.AddPoints(VoxelDownsample(pair.target, 0.1));
+  const PointVector source = VoxelDownsample(pair.source, 0.5);
+  const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.2, 0.1, 0.0, 0.0, 0.0, 1.0 * kDeg);
+  IcpConfig config;
+  config.max_iterations = 100;
+  const StatusOr<IcpResult> every =
+      IcpRegistration::Create(config).value().Register(source, map, guess, 1.0, 0.2);
+  config.reassociate_translation_m = 0.03;
+  config.reassociate_rotation_rad = 0.003;
+  const StatusOr<IcpResult> lazy =
+      IcpRegistration::Create(config).value().Register(source, map, guess, 1.0, 0.2);
+  ASSERT_TRUE(every.ok() && lazy.ok());
+  EXPECT_EQ(every.value().searches, every.value().iterations);
+  EXPECT_LT(lazy.value().searches, every.value().searches);
+  EXPECT_TRUE(lazy.value().converged);
+  ExpectPoseNear(lazy.value().pose, pair.T_a_b, 0.02, 0.1 * kDeg);
+  ExpectPoseNear(lazy.value().pose, every.value().pose, 0.005, 0.02 * kDeg);
+  std::cout << "searches: every iteration " << every.value().searches << ", re-associating "
+            << lazy.value().searches << " in " << lazy.value().iterations << " iterations\n";
+  config.reassociate_rotation_rad = -1.0;
+  EXPECT_FALSE(config.Validate().ok());
+}
+
 TEST(IcpRegistrationTest, FailsClearlyWithoutOverlapOrTarget) {
   const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
   VoxelHashMap empty = VoxelHashMap::Create(VoxelHashMapConfig()).value();

@@ -70,6 +70,21 @@ TEST(VoxelHashMapTest, RemovesVoxelsFarFromTheRobot) {
   EXPECT_TRUE(map.empty());
 }
 
+TEST(VoxelHashMapTest, UpdateRemovesFarVoxelsOnlyAfterTheRemovalStep) {
+  VoxelHashMapConfig config;
+  config.max_distance_m = 10.0;
+  config.removal_step_m = 2.0;
+  VoxelHashMap map = VoxelHashMap::Create(config).value();
+  map.Update({{9.5, 0.0, 0.0}}, Eigen::Vector3d::Zero());  // the first update removes
+  EXPECT_EQ(map.NumPoints(), 1u);
+  map.Update({}, Eigen::Vector3d(-1.5, 0.0, 0.0));  // 11 m away, but moved only 1.5 m
+  EXPECT_EQ(map.NumPoints(), 1u);
+  map.Update({}, Eigen::Vector3d(-2.0, 0.0, 0.0));  // moved 2 m: removed
+  EXPECT_EQ(map.NumPoints(), 0u);
+  config.removal_step_m = -1.0;
+  EXPECT_FALSE(config.Validate().ok());
+}
+
 TEST(VoxelHashMapTest, PlaneGivesNormalAndUpdatesInvalidateIt) {
   VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
   PointVector ground;
@@ -85,6 +100,17 @@ TEST(VoxelHashMapTest, PlaneGivesNormalAndUpdatesInvalidateIt) {
 
   // A nearest point in empty space far from the plane has no query result within 0.5 m.
   EXPECT_FALSE(map.FindMatch(Eigen::Vector3d(0.0, 0.0, 0.8), 0.5, &match));
+
+  // A wall below the ground next to the matched point changes its neighbourhood: the cached
+  // normal must be recomputed, not returned again.
+  PointVector wall;
+  for (double y = -1.0; y <= 1.0; y += 0.2) {
+    for (double z = -1.0; z <= -0.2; z += 0.2) wall.emplace_back(-0.3, y, z);
+  }
+  map.AddPoints(wall);
+  ASSERT_TRUE(map.FindMatch(Eigen::Vector3d(0.1, 0.1, 0.3), 1.0, &match));
+  EXPECT_NEAR(match.distance_sq, 0.1 * 0.1 + 0.1 * 0.1 + 0.3 * 0.3, 1e-9);  // same point
+  EXPECT_TRUE(!match.has_normal || std::abs(match.normal.z()) < 0.999);
 }
 
 TEST(VoxelHashMapTest, ValidateNamesTheBadField) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <Eigen/Cholesky>
 
@@ -25,6 +26,10 @@ Status IcpConfig::Validate() const {
   if (kernel != RobustKernel::kNone && (!std::isfinite(kernel_scale_m) || kernel_scale_m <= 0.0)) {
     return Status::Error("icp.kernel_scale_m must be > 0 with a robust kernel, got " +
                          std::to_string(kernel_scale_m));
+  }
+  if (!std::isfinite(reassociate_translation_m) || reassociate_translation_m < 0.0 ||
+      !std::isfinite(reassociate_rotation_rad) || reassociate_rotation_rad < 0.0) {
+    return Status::Error("icp.reassociate_translation_m / reassociate_rotation_rad must be >= 0");
   }
   if (min_correspondences < 6) {
     return Status::Error("icp.min_correspondences must be >= 6 (6 unknowns), got " +
@@ -118,37 +123,62 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   IcpResult result;
   result.num_source = source.size();
   Pose3 pose = se3::Normalized(initial_guess);
+  // Pairs of the last search: index into `source` and its target match.
+  struct Pair {
+    std::size_t index;
+    TargetMatch match;
+  };
+  std::vector<Pair> pairs_found;
+  pairs_found.reserve(source.size());
+  Pose3 searched_pose = pose;
+  bool must_search = true;
+  const bool every_iteration =
+      config_.reassociate_translation_m == 0.0 && config_.reassociate_rotation_rad == 0.0;
   TargetMatch match;
   using Matrix6d = Eigen::Matrix<double, 6, 6>;
   using Vector6d = Eigen::Matrix<double, 6, 1>;
   for (int iteration = 1; iteration <= config_.max_iterations; ++iteration) {
+    const Pose3 moved = se3::Between(searched_pose, pose);
+    const bool search = must_search || every_iteration ||
+                        se3::TranslationNorm(moved) > config_.reassociate_translation_m ||
+                        se3::RotationAngleRad(moved) > config_.reassociate_rotation_rad;
+    if (search) {
+      pairs_found.clear();
+      for (std::size_t i = 0; i < source.size(); ++i) {
+        if (target.FindMatch(pose * source[i], max_correspondence_distance_m, &match)) {
+          pairs_found.push_back({i, match});
+        }
+      }
+      searched_pose = pose;
+      must_search = false;
+      ++result.searches;
+    }
     Matrix6d H = Matrix6d::Zero();
     Vector6d g = Vector6d::Zero();
-    std::size_t inliers = 0;
+    const std::size_t inliers = pairs_found.size();
     std::size_t pairs = 0;  // inliers that entered the least squares
     double sum_dist_sq = 0.0;
-    for (std::size_t i = 0; i < source.size(); ++i) {
-      const Eigen::Vector3d p = pose * source[i];
-      if (!target.FindMatch(p, max_correspondence_distance_m, &match)) continue;
-      ++inliers;
-      sum_dist_sq += match.distance_sq;
+    for (Pair& pair : pairs_found) {
+      TargetMatch& m = pair.match;
+      const Eigen::Vector3d p = pose * source[pair.index];
+      const Eigen::Vector3d diff = p - m.point;
+      sum_dist_sq += search ? m.distance_sq : diff.squaredNorm();
       if (source_normals != nullptr) {
         // The plane is the source point's own (ring-based) surface normal: target normals
         // of single-ring neighbourhoods are sampling artefacts (see the header).
-        const Eigen::Vector3d& n_source = (*source_normals)[i];
-        match.has_normal = !n_source.isZero(0.0);
-        if (match.has_normal) match.normal = pose.linear() * n_source;
+        const Eigen::Vector3d& n_source = (*source_normals)[pair.index];
+        m.has_normal = !n_source.isZero(0.0);
+        if (m.has_normal) m.normal = pose.linear() * n_source;
       }
-      if (!match.has_normal && !config_.point_to_point_fallback) continue;
+      if (!m.has_normal && !config_.point_to_point_fallback) continue;
       ++pairs;
-      const Eigen::Vector3d diff = p - match.point;
-      if (match.has_normal) {
-        const double r = match.normal.dot(diff);
+      if (m.has_normal) {
+        const double r = m.normal.dot(diff);
         Vector6d J;
-        J.head<3>() = match.normal;
-        J.tail<3>() = p.cross(match.normal);
+        J.head<3>() = m.normal;
+        J.tail<3>() = p.cross(m.normal);
         const double w = KernelWeight(kernel, scale_sq, r * r);
-        H.noalias() += w * J * J.transpose();
+        H.selfadjointView<Eigen::Upper>().rankUpdate(J, w);  // upper triangle only
         g.noalias() += (w * r) * J;
       } else {
         Eigen::Matrix<double, 3, 6> J;
@@ -159,6 +189,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
         g.noalias() += w * J.transpose() * diff;
       }
     }
+    H.triangularView<Eigen::StrictlyLower>() = H.transpose();
     result.iterations = iteration;
     result.num_inliers = inliers;
     result.rmse_m = inliers > 0 ? std::sqrt(sum_dist_sq / static_cast<double>(inliers)) : 0.0;
@@ -176,8 +207,16 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     pose = se3::Exp(delta) * pose;
     if (delta.head<3>().norm() < config_.convergence_translation_m &&
         delta.tail<3>().norm() < config_.convergence_rotation_rad) {
-      result.converged = true;
-      break;
+      // Converged on fresh pairs, or on pairs searched so close to the solution (a tenth of
+      // the re-association distance) that searching again would give nearly the same ones.
+      const Pose3 since_search = se3::Between(searched_pose, pose);
+      if (search ||
+          (se3::TranslationNorm(since_search) < 0.1 * config_.reassociate_translation_m &&
+           se3::RotationAngleRad(since_search) < 0.1 * config_.reassociate_rotation_rad)) {
+        result.converged = true;
+        break;
+      }
+      must_search = true;  // converged on old pairs: confirm with fresh ones
     }
   }
   result.pose = se3::Normalized(pose);

@@ -25,6 +25,10 @@ Status VoxelHashMapConfig::Validate() const {
     return Status::Error("voxel_hash_map.max_distance_m must be > 0, got " +
                          std::to_string(max_distance_m));
   }
+  if (!std::isfinite(removal_step_m) || removal_step_m < 0.0) {
+    return Status::Error("voxel_hash_map.removal_step_m must be >= 0, got " +
+                         std::to_string(removal_step_m));
+  }
   if (!std::isfinite(normal_radius_m) || normal_radius_m <= 0.0 ||
       normal_radius_m > 3.0 * voxel_size_m) {
     return Status::Error("voxel_hash_map.normal_radius_m must be in (0, 3 * voxel_size_m], got " +
@@ -40,12 +44,17 @@ StatusOr<VoxelHashMap> VoxelHashMap::Create(const VoxelHashMapConfig& config) {
 }
 
 VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
-    : config_(config), inv_voxel_size_(1.0 / config.voxel_size_m) {
+    : config_(config),
+      inv_voxel_size_(1.0 / config.voxel_size_m),
+      stride_(static_cast<std::size_t>(config.max_points_per_voxel)) {
   RebuildTable(1024);
 }
 
 void VoxelHashMap::Clear() {
   voxels_.clear();
+  points_.clear();
+  normals_cached_ = false;
+  removed_once_ = false;
   RebuildTable(1024);
 }
 
@@ -88,6 +97,7 @@ int VoxelHashMap::FindOrInsert(const VoxelIndex& index) {
   const int id = static_cast<int>(voxels_.size());
   voxels_.emplace_back();
   voxels_.back().key = key;
+  points_.resize(voxels_.size() * stride_);
   if (2 * voxels_.size() > slot_keys_.size()) {
     RebuildTable(2 * voxels_.size());  // keep the load factor under 1/2
   } else {
@@ -120,7 +130,12 @@ VoxelHashMap::VoxelIndex VoxelHashMap::IndexOf(const Eigen::Vector3d& p) const {
 void VoxelHashMap::Update(const PointVector& points_in_map,
                           const Eigen::Vector3d& robot_position_m) {
   AddPoints(points_in_map);
-  RemoveFarVoxels(robot_position_m);
+  if (!removed_once_ ||
+      (robot_position_m - last_removal_position_m_).norm() >= config_.removal_step_m) {
+    RemoveFarVoxels(robot_position_m);
+    removed_once_ = true;
+    last_removal_position_m_ = robot_position_m;
+  }
 }
 
 void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
@@ -131,20 +146,22 @@ void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
   for (const Eigen::Vector3d& p : points_in_map) {
     if (!p.allFinite()) continue;
     const VoxelIndex index = IndexOf(p);
-    Voxel& voxel = voxels_[FindOrInsert(index)];
-    if (voxel.points.size() >= max_points) continue;
+    const int id = FindOrInsert(index);
+    Voxel& voxel = voxels_[id];
+    if (voxel.count >= max_points) continue;
+    Eigen::Vector3d* points = PointsOf(id);
     if (spacing_sq > 0.0 &&
-        std::any_of(voxel.points.begin(), voxel.points.end(),
+        std::any_of(points, points + voxel.count,
                     [&](const Eigen::Vector3d& q) { return (q - p).squaredNorm() < spacing_sq; })) {
       continue;
     }
-    if (voxel.points.empty()) voxel.points.reserve(max_points);
-    voxel.points.push_back(p);
+    points[voxel.count++] = p;
     if (voxel.last_insert_epoch != epoch_) {
       voxel.last_insert_epoch = epoch_;
       changed.push_back(index);
     }
   }
+  if (!normals_cached_) return;
   for (const VoxelIndex& index : changed) InvalidateNormalsAround(index);
 }
 
@@ -156,8 +173,8 @@ void VoxelHashMap::InvalidateNormalsAround(const VoxelIndex& index) {
         const int id = Find(index + VoxelIndex(dx, dy, dz));
         if (id < 0) continue;
         const Voxel& voxel = voxels_[id];
-        voxel.normal_states.assign(voxel.points.size(), NormalState::kUnknown);
-        voxel.normals.resize(voxel.points.size());
+        voxel.normal_states.assign(voxel.count, NormalState::kUnknown);
+        voxel.normals.resize(voxel.count);
       }
     }
   }
@@ -165,12 +182,20 @@ void VoxelHashMap::InvalidateNormalsAround(const VoxelIndex& index) {
 
 void VoxelHashMap::RemoveFarVoxels(const Eigen::Vector3d& position_m) {
   const double max_sq = config_.max_distance_m * config_.max_distance_m;
-  const auto far = [&](const Voxel& v) {
-    return v.points.empty() || (v.points.front() - position_m).squaredNorm() > max_sq;
-  };
-  const auto new_end = std::remove_if(voxels_.begin(), voxels_.end(), far);
-  if (new_end == voxels_.end()) return;
-  voxels_.erase(new_end, voxels_.end());
+  // Stable compaction of voxels_ and their point blocks.
+  std::size_t kept = 0;
+  for (std::size_t id = 0; id < voxels_.size(); ++id) {
+    const Voxel& voxel = voxels_[id];
+    if (voxel.count == 0 || (PointsOf(id)[0] - position_m).squaredNorm() > max_sq) continue;
+    if (kept != id) {
+      std::copy_n(PointsOf(id), voxel.count, PointsOf(kept));
+      voxels_[kept] = std::move(voxels_[id]);
+    }
+    ++kept;
+  }
+  if (kept == voxels_.size()) return;
+  voxels_.resize(kept);
+  points_.resize(kept * stride_);
   RebuildTable(voxels_.size());
 }
 
@@ -184,18 +209,18 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
   const Eigen::Vector3d high = Eigen::Vector3d::Constant(size) - low;
 
   double best_sq = max_distance_m * max_distance_m;
-  const Voxel* best_voxel = nullptr;
+  int best_id = -1;
   std::size_t best_index = 0;
   const auto search = [&](const VoxelIndex& index) {
     const int id = Find(index);
     if (id < 0) return;
-    const Voxel& voxel = voxels_[id];
-    const std::vector<Eigen::Vector3d>& pts = voxel.points;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector3d* pts = PointsOf(static_cast<std::size_t>(id));
+    const std::size_t n = voxels_[id].count;
+    for (std::size_t i = 0; i < n; ++i) {
       const double d = (pts[i] - query).squaredNorm();
       if (d < best_sq) {
         best_sq = d;
-        best_voxel = &voxel;
+        best_id = id;
         best_index = i;
       }
     }
@@ -214,21 +239,23 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
       }
     }
   }
-  if (best_voxel == nullptr) return false;
+  if (best_id < 0) return false;
 
-  const Eigen::Vector3d& point = best_voxel->points[best_index];
+  const Voxel* best_voxel = &voxels_[best_id];
+  const Eigen::Vector3d& point = PointsOf(static_cast<std::size_t>(best_id))[best_index];
   match->point = point;
   match->distance_sq = best_sq;
   if (!normals_enabled_) {
     match->has_normal = false;
     return true;
   }
-  if (best_voxel->normal_states.size() != best_voxel->points.size()) {
-    best_voxel->normal_states.resize(best_voxel->points.size(), NormalState::kUnknown);
-    best_voxel->normals.resize(best_voxel->points.size());
+  if (best_voxel->normal_states.size() != best_voxel->count) {
+    best_voxel->normal_states.resize(best_voxel->count, NormalState::kUnknown);
+    best_voxel->normals.resize(best_voxel->count);
   }
   NormalState& state = best_voxel->normal_states[best_index];
   if (state == NormalState::kUnknown) {
+    normals_cached_ = true;
     state = ComputeNormal(point, IndexOf(point), &best_voxel->normals[best_index]);
   }
   match->has_normal = state == NormalState::kPlanar;
@@ -247,7 +274,9 @@ VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
       for (int dz = -reach; dz <= reach; ++dz) {
         const int id = Find(index + VoxelIndex(dx, dy, dz));
         if (id < 0) continue;
-        for (const Eigen::Vector3d& q : voxels_[id].points) {
+        const Eigen::Vector3d* points = PointsOf(static_cast<std::size_t>(id));
+        for (std::size_t i = 0; i < voxels_[id].count; ++i) {
+          const Eigen::Vector3d& q = points[i];
           if ((q - p).squaredNorm() <= radius_sq) acc.Add(q - p);  // centred: better conditioned
         }
       }
@@ -259,15 +288,15 @@ VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
 PointVector VoxelHashMap::Points() const {
   PointVector out;
   out.reserve(NumPoints());
-  for (const Voxel& voxel : voxels_) {
-    out.insert(out.end(), voxel.points.begin(), voxel.points.end());
+  for (std::size_t id = 0; id < voxels_.size(); ++id) {
+    out.insert(out.end(), PointsOf(id), PointsOf(id) + voxels_[id].count);
   }
   return out;
 }
 
 std::size_t VoxelHashMap::NumPoints() const {
   std::size_t n = 0;
-  for (const Voxel& voxel : voxels_) n += voxel.points.size();
+  for (const Voxel& voxel : voxels_) n += voxel.count;
   return n;
 }
 

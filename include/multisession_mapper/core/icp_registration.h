@@ -53,6 +53,12 @@ struct IcpConfig {
   bool point_to_point_fallback = false;
   /// Fewer pairs than this at any iteration is a failure.
   int min_correspondences = 30;
+  /// Correspondences are searched again only when the pose moved more than this since the
+  /// last search [m], [rad]; in between, Gauss-Newton iterates on the same pairs (their
+  /// residuals and plane orientations follow the pose). Convergence is only declared on fresh
+  /// pairs. 0 / 0: search at every iteration (classic ICP).
+  double reassociate_translation_m = 0.0;
+  double reassociate_rotation_rad = 0.0;
 
   Status Validate() const;
 };
@@ -60,6 +66,7 @@ struct IcpConfig {
 struct IcpResult {
   Pose3 pose = Pose3::Identity();  ///< T_target_source: maps source points into the target
   int iterations = 0;
+  int searches = 0;                ///< correspondence searches (<= iterations)
   bool converged = false;          ///< last update under the convergence thresholds
   std::size_t num_source = 0;      ///< source points given
   std::size_t num_inliers = 0;     ///< source points with a target point within max distance
