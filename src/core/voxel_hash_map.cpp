@@ -6,6 +6,23 @@
 
 namespace multisession_mapper {
 namespace core {
+namespace {
+
+// The 3x3x3 neighbourhood, nearest first: centre, faces, edges, corners. Searching in this
+// order shrinks the best distance early, so more of the farther voxels are skipped.
+struct Offset {
+  int dx, dy, dz;
+};
+constexpr int kNeighbourhood = 27;
+constexpr Offset kNeighbourOrder[kNeighbourhood] = {
+    {0, 0, 0},                                                                    // centre
+    {-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1},          // faces
+    {-1, -1, 0}, {-1, 1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 0, -1}, {-1, 0, 1},      // edges
+    {1, 0, -1}, {1, 0, 1}, {0, -1, -1}, {0, -1, 1}, {0, 1, -1}, {0, 1, 1},
+    {-1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}, {-1, 1, 1},                           // corners
+    {1, -1, -1}, {1, -1, 1}, {1, 1, -1}, {1, 1, 1}};
+
+}  // namespace
 
 Status VoxelHashMapConfig::Validate() const {
   if (!std::isfinite(voxel_size_m) || voxel_size_m <= 0.0) {
@@ -46,11 +63,32 @@ StatusOr<VoxelHashMap> VoxelHashMap::Create(const VoxelHashMapConfig& config) {
 VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
     : config_(config),
       inv_voxel_size_(1.0 / config.voxel_size_m),
-      stride_(static_cast<std::size_t>(config.max_points_per_voxel)) {
+      stride_(2 + static_cast<std::size_t>(config.max_points_per_voxel)) {
   RebuildTable(1024);
 }
 
+void VoxelHashMap::ClearNeighbourCache() {
+  if (neighbour_cache_.empty()) return;
+  neighbour_cache_.clear();
+  neighbour_ids_.clear();
+}
+
+const std::int32_t* VoxelHashMap::NeighbourIds(const VoxelIndex& center) const {
+  const std::uint64_t key = Key(center);
+  const auto found = neighbour_cache_.find(key);
+  if (found != neighbour_cache_.end()) return neighbour_ids_.data() + found->second;
+  const std::uint32_t offset = static_cast<std::uint32_t>(neighbour_ids_.size());
+  neighbour_ids_.resize(neighbour_ids_.size() + kNeighbourhood);
+  for (int k = 0; k < kNeighbourhood; ++k) {
+    const Offset& o = kNeighbourOrder[k];
+    neighbour_ids_[offset + k] = Find(center + VoxelIndex(o.dx, o.dy, o.dz));
+  }
+  neighbour_cache_.emplace(key, offset);
+  return neighbour_ids_.data() + offset;
+}
+
 void VoxelHashMap::Clear() {
+  ClearNeighbourCache();
   voxels_.clear();
   points_.clear();
   normals_cached_ = false;
@@ -95,6 +133,7 @@ int VoxelHashMap::FindOrInsert(const VoxelIndex& index) {
     i = (i + 1) & slot_mask_;
   }
   const int id = static_cast<int>(voxels_.size());
+  ClearNeighbourCache();  // a new voxel: cached neighbourhoods may miss it
   voxels_.emplace_back();
   voxels_.back().key = key;
   points_.resize(voxels_.size() * stride_);
@@ -155,6 +194,13 @@ void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
                     [&](const Eigen::Vector3d& q) { return (q - p).squaredNorm() < spacing_sq; })) {
       continue;
     }
+    Eigen::Vector3d* bounds = BlockOf(id);
+    if (voxel.count == 0) {
+      bounds[0] = bounds[1] = p;
+    } else {
+      bounds[0] = bounds[0].cwiseMin(p);
+      bounds[1] = bounds[1].cwiseMax(p);
+    }
     points[voxel.count++] = p;
     if (voxel.last_insert_epoch != epoch_) {
       voxel.last_insert_epoch = epoch_;
@@ -188,12 +234,13 @@ void VoxelHashMap::RemoveFarVoxels(const Eigen::Vector3d& position_m) {
     const Voxel& voxel = voxels_[id];
     if (voxel.count == 0 || (PointsOf(id)[0] - position_m).squaredNorm() > max_sq) continue;
     if (kept != id) {
-      std::copy_n(PointsOf(id), voxel.count, PointsOf(kept));
+      std::copy_n(BlockOf(id), 2 + voxel.count, BlockOf(kept));
       voxels_[kept] = std::move(voxels_[id]);
     }
     ++kept;
   }
   if (kept == voxels_.size()) return;
+  ClearNeighbourCache();  // ids moved
   voxels_.resize(kept);
   points_.resize(kept * stride_);
   RebuildTable(voxels_.size());
@@ -211,10 +258,23 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
   double best_sq = max_distance_m * max_distance_m;
   int best_id = -1;
   std::size_t best_index = 0;
-  const auto search = [&](const VoxelIndex& index) {
-    const int id = Find(index);
-    if (id < 0) return;
-    const Eigen::Vector3d* pts = PointsOf(static_cast<std::size_t>(id));
+  const std::int32_t* ids = NeighbourIds(center);
+  for (int k = 0; k < kNeighbourhood; ++k) {
+    const int id = ids[k];
+    if (id < 0) continue;
+    if (k > 0) {
+      // Skip a neighbour voxel that cannot hold anything closer than the best so far.
+      const Offset& o = kNeighbourOrder[k];
+      const double gx = o.dx < 0 ? low.x() : (o.dx > 0 ? high.x() : 0.0);
+      const double gy = o.dy < 0 ? low.y() : (o.dy > 0 ? high.y() : 0.0);
+      const double gz = o.dz < 0 ? low.z() : (o.dz > 0 ? high.z() : 0.0);
+      if (gx * gx + gy * gy + gz * gz >= best_sq) continue;
+    }
+    // Same test against the box of the voxel's points, tighter (surfaces are thin).
+    const Eigen::Vector3d* block = BlockOf(static_cast<std::size_t>(id));
+    const Eigen::Vector3d gap = (block[0] - query).cwiseMax(query - block[1]).cwiseMax(0.0);
+    if (gap.squaredNorm() >= best_sq) continue;
+    const Eigen::Vector3d* pts = block + 2;
     const std::size_t n = voxels_[id].count;
     for (std::size_t i = 0; i < n; ++i) {
       const double d = (pts[i] - query).squaredNorm();
@@ -222,20 +282,6 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
         best_sq = d;
         best_id = id;
         best_index = i;
-      }
-    }
-  };
-  search(center);
-  for (int dx = -1; dx <= 1; ++dx) {
-    const double gx = dx < 0 ? low.x() : (dx > 0 ? high.x() : 0.0);
-    for (int dy = -1; dy <= 1; ++dy) {
-      const double gy = dy < 0 ? low.y() : (dy > 0 ? high.y() : 0.0);
-      for (int dz = -1; dz <= 1; ++dz) {
-        if (dx == 0 && dy == 0 && dz == 0) continue;
-        const double gz = dz < 0 ? low.z() : (dz > 0 ? high.z() : 0.0);
-        // Skip a neighbour voxel that cannot hold anything closer than the best so far.
-        if (gx * gx + gy * gy + gz * gz >= best_sq) continue;
-        search(center + VoxelIndex(dx, dy, dz));
       }
     }
   }

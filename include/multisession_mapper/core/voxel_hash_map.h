@@ -6,11 +6,13 @@
 // filled by one scan), box-distance pruning of neighbour voxels in the search, and cached
 // surface normals from the local covariance for point-to-plane ICP.
 //
-// Not thread-safe: FindMatch() fills the normal cache (one ICP thread per map).
+// Not thread-safe: FindMatch() fills the normal and neighbourhood caches (one ICP thread per
+// map).
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
@@ -96,8 +98,16 @@ class VoxelHashMap : public RegistrationTarget {
   int FindOrInsert(const VoxelIndex& index);
   void RebuildTable(std::size_t min_capacity);
   void InvalidateNormalsAround(const VoxelIndex& index);
-  const Eigen::Vector3d* PointsOf(std::size_t id) const { return points_.data() + id * stride_; }
-  Eigen::Vector3d* PointsOf(std::size_t id) { return points_.data() + id * stride_; }
+  /// Ids of the 27 voxels around `center` (itself first, then the 6 face, 12 edge and 8
+  /// corner neighbours; -1 where empty), cached until the set of voxels changes: an ICP
+  /// queries the same voxels at every iteration.
+  const std::int32_t* NeighbourIds(const VoxelIndex& center) const;
+  void ClearNeighbourCache();
+  // Block of voxel `id` in points_: [bounds low, bounds high, point 0, point 1, ...].
+  const Eigen::Vector3d* BlockOf(std::size_t id) const { return points_.data() + id * stride_; }
+  Eigen::Vector3d* BlockOf(std::size_t id) { return points_.data() + id * stride_; }
+  const Eigen::Vector3d* PointsOf(std::size_t id) const { return BlockOf(id) + 2; }
+  Eigen::Vector3d* PointsOf(std::size_t id) { return BlockOf(id) + 2; }
   NormalState ComputeNormal(const Eigen::Vector3d& p, const VoxelIndex& index,
                             Eigen::Vector3d* normal) const;
 
@@ -109,14 +119,18 @@ class VoxelHashMap : public RegistrationTarget {
   /// normals to invalidate (the odometry with scan normals never asks for one).
   mutable bool normals_cached_ = false;
   bool removed_once_ = false;
+  mutable std::unordered_map<std::uint64_t, std::uint32_t> neighbour_cache_;  ///< key -> offset
+  mutable std::vector<std::int32_t> neighbour_ids_;  ///< 27 per cached center
   Eigen::Vector3d last_removal_position_m_ = Eigen::Vector3d::Zero();
   // Open-addressing table (linear probing, power-of-two size) from key to index in voxels_;
   // ~3x faster lookups than std::unordered_map here, which dominate the ICP's run time.
   std::vector<Voxel> voxels_;
-  // The points of voxel i are points_[i * stride_ ...], stride_ = max_points_per_voxel: one
-  // flat array instead of a vector per voxel saves the ICP's nearest-neighbour search a cache
-  // miss per visited voxel (the search is memory bound).
-  std::size_t stride_ = 1;
+  // Voxel i owns points_[i * stride_, (i + 1) * stride_), stride_ = 2 + max_points_per_voxel:
+  // the bounding box of its points (low, high corner), then the points. One flat array
+  // instead of a vector per voxel saves the nearest-neighbour search (memory bound) a cache
+  // miss per visited voxel; the box lets it skip a voxel whose points are all farther than
+  // the best match so far, and is read with the first points.
+  std::size_t stride_ = 2;
   std::vector<Eigen::Vector3d> points_;
   std::vector<std::uint64_t> slot_keys_;
   std::vector<std::int32_t> slot_voxels_;
