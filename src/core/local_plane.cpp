@@ -8,6 +8,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "multisession_mapper/core/fast_atan2.h"
+
 namespace multisession_mapper {
 namespace core {
 
@@ -69,7 +71,7 @@ namespace {
 
 int AzimuthBin(const Eigen::Vector3f& p, int bins) {
   constexpr double kTwoPi = 2.0 * M_PI;
-  double a = std::atan2(static_cast<double>(p.y()), static_cast<double>(p.x()));
+  double a = FastAtan2(static_cast<double>(p.y()), static_cast<double>(p.x()));
   if (a < 0.0) a += kTwoPi;
   const int bin = static_cast<int>(a * bins / kTwoPi);
   return std::min(bin, bins - 1);
