@@ -7,7 +7,28 @@
 #  2. long run: sessions of the `small` profile merged one after the other, each in its own
 #     offline_mapper process under /usr/bin/time -v; prints the peak memory and the map's size
 #     after each (the memory curve).
-#   scripts/stress.sh [--kills N] [--max-minutes M] [--sessions N] [--only kills|long]
+#  3. nodelets twice: ONE nodelet manager with the four nodelets (launch/mapping.launch with
+#     play:=false) maps a `campus` bag, finishes (idle_finish_s without a scan), merges and
+#     saves, then maps the same bag again as a second session in the same process. Both runs
+#     merge into a map made beforehand by offline_mapper from the same scans, so that they do
+#     the same work (a first session's merge only stores it). The manager's RSS
+#     (/proc/PID/status VmRSS) is sampled every 2 s; prints per run the scans played and mapped,
+#     the peak RSS, the RSS after the finish (merge and save done) and the map's size on disk.
+#     Pass: both sessions merged and saved, each maps at least 90 % of the scans played (fewer:
+#     the pipeline dropped or refused scans), and the RSS after the second finish exceeds the
+#     RSS after the first by at most the map's growth on disk plus 5 % of the first run's peak
+#     RSS. The map is all the state a session leaves behind (map_merging holds it,
+#     place_recognition its descriptor database); the 5 % are heap fragmentation: the live
+#     heap after a finish stays flat (heaptrack on the `small` bag, 3 sessions: 11.5, 11.6,
+#     11.7 MB), but freed pages that still hold a live block stay resident, a few MB per
+#     session. A leak of a session's points (as the fused submaps' buffers kept before) grows
+#     the RSS by far more. --nodelet-runs N: N runs, the criterion between runs 1 and 2.
+#   scripts/stress.sh [--kills N] [--max-minutes M] [--sessions N] [--only kills|long|nodelets]
+#                     [--nodelet-bag PATH] [--nodelet-duration S] [--nodelet-rate R]
+#                     [--nodelet-runs N]
+#   --nodelet-bag: default: one simulated `campus` session in build/stress_data/campus1;
+#   --nodelet-duration: play only the first S seconds of it (rosbag play --duration), default
+#   the whole bag; --nodelet-rate: playback rate, default 1.0.
 # Data goes to build/stress_data (reused when present), maps to build/stress_maps.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/lib/common.sh"
@@ -16,23 +37,32 @@ kills=50
 max_minutes=30
 sessions=10
 only=""
+nodelet_bag=""
+nodelet_duration=""
+nodelet_rate="1.0"
+nodelet_runs=2
 while [ $# -gt 0 ]; do
   case "$1" in
     --kills) kills="$2"; shift ;;
     --max-minutes) max_minutes="$2"; shift ;;
     --sessions) sessions="$2"; shift ;;
     --only) only="$2"; shift ;;
-    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    --nodelet-bag) nodelet_bag="$2"; shift ;;
+    --nodelet-duration) nodelet_duration="$2"; shift ;;
+    --nodelet-rate) nodelet_rate="$2"; shift ;;
+    --nodelet-runs) nodelet_runs="$2"; shift ;;
+    -h|--help) sed -n '2,36p' "$0"; exit 0 ;;
     *) msm_die "unknown argument '$1' (see --help)" ;;
   esac
   shift
 done
+case "${only}" in ""|kills|long|nodelets) ;; *) msm_die "--only: kills, long or nodelets" ;; esac
 
 msm_install_deps
 if [ -f "${MSM_WS}/build/Makefile" ]; then
   # An existing workspace: build only the three tools used here.
   make -C "${MSM_WS}/build" -j"${MSM_JOBS:-$(nproc)}" offline_mapper map_check simulate_campus \
-    >/dev/null || msm_die "building the tools failed"
+    multisession_mapper_nodelets >/dev/null || msm_die "building the tools failed"
 else
   msm_build
 fi
@@ -211,7 +241,169 @@ long_run() {
   [ ${ok} -eq 1 ]
 }
 
+# ---------------------------------------------------------------------------------------------
+# Scans of /velodyne_points in the bag, in its first $2 seconds when $2 is given (from the bag's
+# index, without reading the clouds; rosbag's _get_entries is the index walk read_messages uses).
+bag_scans() {
+  /usr/bin/python3 - "$1" "${2:-}" <<'PY'
+import sys
+import rosbag
+import rospy
+bag = rosbag.Bag(sys.argv[1])
+topic = "/velodyne_points"
+if not sys.argv[2]:
+    print(bag.get_message_count(topic))
+else:
+    start = bag.get_start_time()
+    connections = list(bag._get_connections([topic]))
+    print(sum(1 for _ in bag._get_entries(connections, rospy.Time.from_sec(start),
+                                          rospy.Time.from_sec(start + float(sys.argv[2])))))
+PY
+}
+
+# The nodelet manager started (directly or through a launch prefix) by roslaunch $1: the
+# descendant running the nodelet binary with __name:=msm_manager.
+manager_pid() {
+  local pid p
+  for pid in $(pgrep -f '__name:=msm_manager'); do
+    [ "$(basename "$(readlink "/proc/${pid}/exe" 2>/dev/null)")" = nodelet ] || continue
+    p=${pid}
+    while [ -n "${p}" ] && [ "${p}" -gt 1 ]; do
+      if [ "${p}" = "$1" ]; then echo "${pid}"; return 0; fi
+      p=$(ps -o ppid= -p "${p}" 2>/dev/null | tr -d ' ')
+    done
+  done
+}
+
+rss_mb() { awk '/^VmRSS:/ { printf "%.0f", $2 / 1024 }' "/proc/$1/status" 2>/dev/null; }
+
+nodelets_twice() {
+  local bag="${nodelet_bag}"
+  if [ -z "${bag}" ]; then
+    simulate campus 1 "${data}/campus1"
+    bag="${data}/campus1/$(msm_session_bags "${data}/campus1" | head -n 1)"
+  fi
+  [ -f "${bag}" ] || msm_die "no bag at ${bag}"
+  local map="${maps}/nodelets" log="${maps}/nodelets_launch.log" samples="${maps}/nodelets_rss.txt"
+  rm -rf "${map}" "${map}.new" "${map}.old"
+  : > "${samples}"
+  local played; played=$(bag_scans "${bag}" "${nodelet_duration}")
+  local -a peak after map_kb scans note
+  # The map both runs are merged into: the same scans mapped beforehand by offline_mapper, so
+  # that run 1 does what run 2 does (query the history database, register and merge a revisit)
+  # and the two are comparable (a first session's merge only stores it).
+  local name; name=$(basename "${bag}" .bag)
+  msm_log "nodelets twice: prior map of the same ${played} scans (offline_mapper, session ${name}_offline)"
+  "${bin}/offline_mapper" --bag "${bag}" --map "${map}" --session "${name}_offline" \
+    --max-scans "${played}" --quiet || msm_die "offline_mapper failed on ${bag}"
+  map_kb[0]=$(du -sk "${map}" | cut -f1)
+  # A master of its own: other ROS processes on this machine keep theirs.
+  local port=$((20000 + RANDOM % 20000))
+  export ROS_MASTER_URI="http://localhost:${port}"
+  msm_log "nodelets twice: ${bag##*/}${nodelet_duration:+ (first ${nodelet_duration} s)}, ${played} scans per run, rate ${nodelet_rate}, one manager (master port ${port})"
+  # Line-buffered output (to a file): the log lines are waited for below.
+  ROSCONSOLE_STDOUT_LINE_BUFFERED=1 PYTHONUNBUFFERED=1 \
+    roslaunch -p "${port}" "${MSM_REPO}/launch/mapping.launch" play:=false bag:="${bag}" session:="${name}" \
+      map_dir:="${map}" idle_finish_s:=5.0 > "${log}" 2>&1 &
+  launch_pid=$!  # global: the EXIT trap stops it
+  local manager="" i
+  for ((i = 0; i < 120; i++)); do
+    kill -0 "${launch_pid}" 2>/dev/null || break
+    manager=$(manager_pid "${launch_pid}")
+    [ -n "${manager}" ] && grep -q 'MapMerging: map directory' "${log}" \
+      && grep -q 'SubmapManager: session' "${log}" && grep -q 'ScanMatching: config' "${log}" && break
+    sleep 0.5
+  done
+  stop_launch() {
+    [ -n "${sampler:-}" ] && kill "${sampler}" 2>/dev/null
+    kill -INT "${launch_pid}" 2>/dev/null || true
+    for ((i = 0; i < 60; i++)); do kill -0 "${launch_pid}" 2>/dev/null || break; sleep 0.5; done
+    kill -KILL "${launch_pid}" 2>/dev/null || true
+    wait "${launch_pid}" 2>/dev/null || true
+  }
+  sampler=""
+  trap 'stop_launch' EXIT
+  trap 'exit 130' INT TERM
+  if [ -z "${manager}" ] || ! grep -q 'MapMerging: map directory' "${log}"; then
+    tail -n 30 "${log}"
+    stop_launch
+    msm_die "the nodelet manager did not start (see ${log})"
+  fi
+  ( while kill -0 "${manager}" 2>/dev/null; do
+      echo "$(date +%s) $(rss_mb "${manager}")" >> "${samples}"
+      sleep 2
+    done ) &
+  sampler=$!
+  after[0]=$(rss_mb "${manager}")  # started, prior map loaded
+  peak[0]=${after[0]}
+  local ok=1 run start_s merges
+  for ((run = 1; run <= nodelet_runs; run++)); do
+    start_s=$(date +%s)
+    local args=(--clock --rate "${nodelet_rate}" --queue 1000)
+    [ -n "${nodelet_duration}" ] && args+=(--duration "${nodelet_duration}")
+    rosbag play "${args[@]}" "${bag}" > "${maps}/nodelets_play_${run}.log" 2>&1 \
+      || { note[run]="rosbag play failed"; ok=0; }
+    # The session finishes idle_finish_s after the last scan was processed, then merges and
+    # saves: wait for the merge's log line (success or failure) of this run; 15 min at most
+    # after the end of the playback (the backlog of a pipeline slower than the playback and a
+    # campus merge take a few minutes).
+    local deadline=$(( $(date +%s) + 900 ))
+    while merges=$(grep -c "MapMerging: session '" "${log}" || true); [ "${merges}" -lt "${run}" ]; do
+      if ! kill -0 "${manager}" 2>/dev/null; then note[run]="manager died"; ok=0; break; fi
+      if [ "$(date +%s)" -ge "${deadline}" ]; then
+        note[run]="no merge within 15 min after the playback ($(grep -c 'ScanMatching: scan skipped' "${log}") skip warnings)"
+        ok=0; break
+      fi
+      sleep 1
+    done
+    sleep 4  # the latched map and summary are published after the save
+    after[run]=$(rss_mb "${manager}")
+    peak[run]=$(awk -v s="${start_s}" '$1 >= s && $2 > m { m = $2 } END { print m + 0 }' "${samples}")
+    [ -n "${after[run]}" ] && [ "${after[run]}" -gt "${peak[run]}" ] && peak[run]=${after[run]}
+    map_kb[run]=$(du -sk "${map}" 2>/dev/null | cut -f1)
+    scans[run]=$(grep "SubmapManager: session '.*': [0-9]* scans" "${log}" | sed -n "${run}p" \
+                 | sed -E 's/.*: ([0-9]+) scans.*/\1/')
+    local merged_line; merged_line=$(grep "MapMerging: session '" "${log}" | sed -n "${run}p")
+    if [ -z "${note[run]:-}" ] && ! grep -q 'saved to' <<<"${merged_line}"; then
+      note[run]="not merged/saved: $(sed -E 's/.*MapMerging: //' <<<"${merged_line}" | cut -c1-120)"
+      ok=0
+    fi
+    if [ -z "${note[run]:-}" ] && [ $(( ${scans[run]:-0} * 10 )) -lt $(( played * 9 )) ]; then
+      note[run]="only ${scans[run]:-0} of ${played} scans mapped"
+      ok=0
+    fi
+    [ ${ok} -eq 1 ] || break
+  done
+  local hwm; hwm=$(awk '/^VmHWM:/ { printf "%.0f", $2 / 1024 }' "/proc/${manager}/status" 2>/dev/null || true)
+  stop_launch
+  trap - EXIT INT TERM
+  printf '%-4s %8s %8s %12s %17s %7s %s\n' run played mapped peak_rss_mb rss_after_fin_mb map_mb note
+  # Run 0: the map made by offline_mapper; the manager started with it loaded, before any scan.
+  for ((run = 0; run <= nodelet_runs; run++)); do
+    [ -n "${after[run]:-}${note[run]:-}" ] || continue
+    printf '%-4s %8s %8s %12s %17s %7s %s\n' "${run}" "${played}" "${scans[run]:-(offline)}" \
+      "${peak[run]:-?}" "${after[run]:-?}" "$(awk -v k="${map_kb[run]:-0}" 'BEGIN { printf "%.1f", k / 1024 }')" "${note[run]:-}"
+  done
+  echo "manager peak RSS over all runs (VmHWM): ${hwm:-?} MB; RSS samples: ${samples}"
+  if [ ${ok} -eq 1 ] && [ "${nodelet_runs}" -ge 2 ]; then
+    local grew=$(( after[2] - after[1] ))
+    local map_grew allowed
+    map_grew=$(awk -v a="${map_kb[1]}" -v b="${map_kb[2]}" 'BEGIN { printf "%.1f", (b - a) / 1024 }')
+    allowed=$(awk -v m="${map_grew}" -v p="${peak[1]}" 'BEGIN { printf "%.1f", (m > 0 ? m : 0) + 0.05 * p }')
+    if awk -v g="${grew}" -v a="${allowed}" 'BEGIN { exit !(g <= a) }'; then
+      echo "nodelets twice: pass: RSS after the finish grew ${grew} MB from run 1 to run 2 (allowed: map growth ${map_grew} MB + 5 % of the peak = ${allowed} MB)"
+    else
+      echo "nodelets twice: FAIL: RSS after the finish grew ${grew} MB from run 1 to run 2, more than the map growth ${map_grew} MB + 5 % of the peak (${allowed} MB)"
+      ok=0
+    fi
+  else
+    echo "nodelets twice: FAIL (see the note; log ${log})"
+  fi
+  [ ${ok} -eq 1 ]
+}
+
 status=0
-if [ "${only}" != "long" ]; then crash_safety || status=1; fi
-if [ "${only}" != "kills" ]; then long_run || status=1; fi
+if [ -z "${only}" ] || [ "${only}" = kills ]; then crash_safety || status=1; fi
+if [ -z "${only}" ] || [ "${only}" = long ]; then long_run || status=1; fi
+if [ -z "${only}" ] || [ "${only}" = nodelets ]; then nodelets_twice || status=1; fi
 exit ${status}

@@ -626,11 +626,15 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     AppendScanPoses(submap, &trajectory);
     if (fused[c]) {
       submap.state = SubmapState::kFused;
-      submap.points.clear();  // its static points now live in the history submaps
+      // Its static points now live in the history submaps. Release the buffer, not only the
+      // size (clear() keeps the capacity): a long-lived process (the nodelets) keeps the map
+      // in memory across sessions, and every fused submap kept its whole point buffer.
+      submap.points = PointVector();
     } else {
       const auto dyn = current_dynamic.find(c);
       if (dyn != current_dynamic.end()) {
         PointVector kept;
+        kept.reserve(submap.points.size() - dyn->second.size());
         for (std::size_t k = 0; k < submap.points.size(); ++k) {
           if (!dyn->second.count(static_cast<std::uint32_t>(k))) kept.push_back(submap.points[k]);
         }

@@ -154,6 +154,11 @@ class MapMergingNodelet : public nodelet::Nodelet {
     recognition_.reset();
     ++merges_;
     merged_.notify_all();
+    // The finished session (its SessionResult and PlaceRecognizer, last held here) and the
+    // merge's working memory are freed now; hand the free heap pages back to the system, or
+    // the manager keeps every session's peak in its RSS (glibc keeps freed memory in per-thread
+    // arenas). Measured by scripts/stress.sh --only nodelets.
+    ReleaseFreeHeap();
   }
 
   FinishSession::Response MergeLocked(const FinishedSession& session,

@@ -6,6 +6,10 @@
 
 #include <ros/console.h>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 namespace multisession_mapper {
 namespace nodelets {
 
@@ -72,6 +76,12 @@ std::string SessionName(const std::string& base, int index) {
     return buffer;  // unique per session already
   }
   return index == 0 ? name : name + "_" + std::to_string(index + 1);
+}
+
+void ReleaseFreeHeap() {
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
 }
 
 Frames FramesParam(const ros::NodeHandle& pnh) {

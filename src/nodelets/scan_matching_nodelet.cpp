@@ -1,15 +1,20 @@
 // ScanMatchingNodelet: LiDAR odometry (input filter, de-skew, scan-to-map ICP; core::Odometry).
-//   in:  points (sensor_msgs/PointCloud2, remap to the driver's topic)
+//   in:  points (sensor_msgs/PointCloud2, remap to the driver's topic), finished_session
+//        (in-process, from SubmapManager: restart the odometry for the next session)
 //   out: odom (nav_msgs/Odometry, odom -> base frame), tf odom -> base frame (REP-105;
 //        sensor extrinsic from the `base_to_sensor` parameter), registered_points (the
 //        de-skewed scan in the sensor frame, only while subscribed), registered_scan
 //        (in-process, zero-copy: the core OdometryResult for SubmapManagerNodelet).
 //   dynamic_reconfigure: cfg/ScanMatching.cfg (initial values from the `config` YAML).
-// Threading / ownership: every callback (points, dynamic_reconfigure) runs on this nodelet's
-// single-threaded queue (getNodeHandle / getPrivateNodeHandle); mutex_ additionally guards
-// odometry_, config_ and the restart flag against onInit (the reconfigure server calls back
-// from onInit). Published OdometryResults are immutable once published (shared_ptr<const>).
-// sensor_frame_ is touched only by OnPoints.
+// Threading / ownership: every callback (points, finished_session, dynamic_reconfigure) runs
+// on this nodelet's single-threaded queue (getNodeHandle / getPrivateNodeHandle); mutex_
+// additionally guards odometry_, config_, the scan counters, the session index and
+// sensor_frame_ against onInit (the reconfigure server calls back from onInit). Published
+// OdometryResults are immutable once published (shared_ptr<const>).
+// Sessions: when SubmapManager has finished a session, the odometry restarts at the identity
+// (the next session's frame is its first scan's sensor frame, as for the first session), with
+// no previous stamp (a bag played again starts at earlier stamps) and no sensor frame yet;
+// each registered scan carries the index of its session.
 // Bad input: a cloud that cannot be converted (no x/y/z, truncated data, big-endian), one
 // without a usable point, with a stamp not after the previous one, or with another frame_id
 // than the first scan's is skipped with a (throttled) warning naming the problem; mapping
@@ -61,6 +66,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("registered_points", 10);
     scan_pub_ = nh.advertise<RegisteredScan>("registered_scan", 200);
     points_sub_ = nh.subscribe("points", 200, &ScanMatchingNodelet::OnPoints, this);
+    finished_sub_ = nh.subscribe("finished_session", 2, &ScanMatchingNodelet::OnSessionFinished, this);
     NODELET_INFO_STREAM("ScanMatching: config " << (path.empty() ? "(defaults)" : path)
                         << ", frames " << frames_.odom << " -> " << frames_.base);
   }
@@ -84,7 +90,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       NODELET_WARN_STREAM("ScanMatching: reconfigure refused: " << valid.message());
       return;
     }
-    if (!odometry_ || scans_ == 0) {
+    if (!odometry_ || session_scans_ == 0) {
       config_ = changed;
       if (odometry_) Restart(core::Pose3::Identity());
       return;
@@ -104,6 +110,18 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
   }
 
+  // SubmapManager finished session `index`: the odometry of the next one starts afresh.
+  void OnSessionFinished(const boost::shared_ptr<const FinishedSession>& finished) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    session_index_ = finished->index + 1;
+    session_scans_ = 0;
+    sensor_frame_.clear();
+    if (Restart(core::Pose3::Identity())) {
+      NODELET_INFO("ScanMatching: session '%s' finished: odometry restarted for the next session",
+                   finished->session.c_str());
+    }
+  }
+
   void OnPoints(const sensor_msgs::PointCloud2::ConstPtr& msg) {
     const ros::WallTime start = ros::WallTime::now();
     core::StatusOr<core::LidarScan> scan = conversions::FromPointCloud2(*msg);
@@ -111,23 +129,27 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       NODELET_WARN_STREAM_THROTTLE(5.0, "ScanMatching: scan skipped: " << scan.status().message());
       return;
     }
-    if (sensor_frame_.empty()) sensor_frame_ = msg->header.frame_id;
-    if (msg->header.frame_id != sensor_frame_) {
-      NODELET_WARN_STREAM_THROTTLE(5.0, "ScanMatching: scan skipped: frame_id '"
-                                            << msg->header.frame_id << "' is not the sensor frame '"
-                                            << sensor_frame_ << "' of the first scan");
-      return;
-    }
     std::shared_ptr<core::OdometryResult> result;
+    std::uint32_t session_index = 0;
+    std::size_t scans = 0;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!odometry_) return;
+      if (sensor_frame_.empty()) sensor_frame_ = msg->header.frame_id;
+      if (msg->header.frame_id != sensor_frame_) {
+        NODELET_WARN_STREAM_THROTTLE(5.0, "ScanMatching: scan skipped: frame_id '"
+                                              << msg->header.frame_id << "' is not the sensor frame '"
+                                              << sensor_frame_ << "' of the first scan");
+        return;
+      }
       core::StatusOr<core::OdometryResult> r = odometry_->ProcessScan(scan.value());
       if (!r.ok()) {
         NODELET_WARN_STREAM_THROTTLE(5.0, "ScanMatching: scan skipped: " << r.status().message());
         return;
       }
-      ++scans_;
+      scans = ++scans_;
+      ++session_scans_;
+      session_index = session_index_;
       result = std::make_shared<core::OdometryResult>(std::move(r.value()));
     }
     const std::string sensor_frame = msg->header.frame_id;
@@ -136,6 +158,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     boost::shared_ptr<RegisteredScan> out = boost::make_shared<RegisteredScan>();
     out->header = msg->header;
     out->odometry = result;
+    out->session_index = session_index;
     scan_pub_.publish(out);
 
     nav_msgs::Odometry odom;
@@ -158,8 +181,8 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     NODELET_DEBUG("ScanMatching: scan %.3f in %.1f ms (odometry %.1f ms)%s",
                   msg->header.stamp.toSec(), latency_ms, result->timing.total_ms,
                   result->registered ? "" : " (not registered)");
-    if (scans_ % 100 == 0) {
-      NODELET_INFO("ScanMatching: %zu scans, last %.1f ms per scan", scans_, latency_ms);
+    if (scans % 100 == 0) {
+      NODELET_INFO("ScanMatching: %zu scans, last %.1f ms per scan", scans, latency_ms);
     }
   }
 
@@ -168,11 +191,13 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
   std::unique_ptr<dynamic_reconfigure::Server<ScanMatchingConfig>> server_;
   core::OdometryConfig config_;
   std::unique_ptr<core::Odometry> odometry_;
-  std::size_t scans_ = 0;
-  std::string sensor_frame_;  ///< frame_id of the first scan; others are refused
+  std::size_t scans_ = 0;          ///< registered since the start of the manager
+  std::size_t session_scans_ = 0;  ///< registered by the current odometry's session
+  std::uint32_t session_index_ = 0;  ///< see RegisteredScan::session_index
+  std::string sensor_frame_;  ///< frame_id of the session's first scan; others are refused
   core::Pose3 T_base_sensor_ = core::Pose3::Identity();
   Frames frames_;
-  ros::Subscriber points_sub_;
+  ros::Subscriber points_sub_, finished_sub_;
   ros::Publisher odom_pub_, points_pub_, scan_pub_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
 };

@@ -13,6 +13,10 @@
 // runs on this nodelet's single-threaded queue; mutex_ guards mapper_, config_ and the
 // session bookkeeping additionally against onInit. A finished SessionResult is handed over as
 // shared_ptr<const> and never touched here again.
+// Sessions: after a finish the next session (name "<session>_<n>") starts in the same process.
+// finished_session tells ScanMatching to restart its odometry; a registered scan carries the
+// index of the session its odometry belongs to, and scans of an earlier session's odometry
+// (in flight while the session was finished) are dropped, not mapped in the wrong frame.
 #include <memory>
 #include <mutex>
 
@@ -105,6 +109,14 @@ class SubmapManagerNodelet : public nodelet::Nodelet {
     const ros::WallTime start = ros::WallTime::now();
     std::lock_guard<std::mutex> lock(mutex_);
     if (!mapper_ || !msg->odometry) return;
+    if (msg->session_index != static_cast<std::uint32_t>(session_index_)) {
+      // Registered before ScanMatching restarted its odometry for this session (a scan in
+      // flight while the session was finished): its pose is in the finished session's frame.
+      NODELET_WARN_STREAM_THROTTLE(5.0, "SubmapManager: scan dropped: registered by the odometry of session index "
+                                            << msg->session_index << ", mapping session index "
+                                            << session_index_ << " ('" << session_ << "')");
+      return;
+    }
     const core::Status s = mapper_->AddRegisteredScan(*msg->odometry);
     if (!s.ok()) {
       NODELET_WARN_STREAM_THROTTLE(5.0, "SubmapManager: " << s.message());
@@ -231,6 +243,7 @@ class SubmapManagerNodelet : public nodelet::Nodelet {
                         << request->data << ")");
     boost::shared_ptr<FinishedSession> out = boost::make_shared<FinishedSession>();
     out->session = session_;
+    out->index = static_cast<std::uint32_t>(session_index_);
     core::StatusOr<core::SessionResult> result = mapper_->Finish();
     if (result.ok()) {
       out->result = std::make_shared<const core::SessionResult>(std::move(result.value()));

@@ -27,6 +27,10 @@ namespace nodelets {
 struct RegisteredScan {
   std_msgs::Header header;  ///< stamp = scan stamp; frame_id = sensor frame
   std::shared_ptr<const core::OdometryResult> odometry;
+  /// Index of the session whose odometry registered the scan (0: the first session of this
+  /// manager). ScanMatching restarts its odometry when a session has finished; SubmapManager
+  /// maps only scans of its current session's odometry.
+  std::uint32_t session_index = 0;
 };
 
 /// SubmapManager -> PlaceRecognition: the scan again, with the submap it went into.
@@ -37,9 +41,10 @@ struct ScanInSubmap {
   std::shared_ptr<const core::OdometryResult> odometry;
 };
 
-/// SubmapManager -> MapMerging at the end of a session.
+/// SubmapManager -> MapMerging (and PlaceRecognition, ScanMatching) at the end of a session.
 struct FinishedSession {
   std::string session;
+  std::uint32_t index = 0;  ///< the session's index in this manager (0: the first)
   std::string error;  ///< non-empty: the session produced nothing to merge
   std::shared_ptr<const core::SessionResult> result;
 };

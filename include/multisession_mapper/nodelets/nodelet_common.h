@@ -34,6 +34,9 @@ bool BaseToSensorParam(const ros::NodeHandle& pnh, core::Pose3* T_base_sensor);
 /// "session_YYYYmmdd_HHMMSS"), with "_<index+1>" appended from the second session on.
 std::string SessionName(const std::string& base, int index);
 
+/// Returns the free pages of the heap to the system (glibc malloc_trim; nothing elsewhere).
+void ReleaseFreeHeap();
+
 /// Frame names: map, odom, base (REP-105).
 struct Frames {
   std::string map = "map";
