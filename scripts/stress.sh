@@ -18,11 +18,13 @@
 #     the pipeline dropped or refused scans), and the RSS after the second finish exceeds the
 #     RSS after the first by at most the map's growth on disk plus 5 % of the first run's peak
 #     RSS. The map is all the state a session leaves behind (map_merging holds it,
-#     place_recognition its descriptor database); the 5 % are heap fragmentation: the live
-#     heap after a finish stays flat (heaptrack on the `small` bag, 3 sessions: 11.5, 11.6,
-#     11.7 MB), but freed pages that still hold a live block stay resident, a few MB per
-#     session. A leak of a session's points (as the fused submaps' buffers kept before) grows
-#     the RSS by far more. --nodelet-runs N: N runs, the criterion between runs 1 and 2.
+#     place_recognition its descriptor database); the 5 % are for heap fragmentation: freed
+#     pages that still hold a live block stay resident (heaptrack, first 15 s of `small` s00,
+#     3 sessions in one manager: live heap after each finish 11.5 / 11.6 / 11.7 MB while the
+#     RSS after the finish grew by several MB per session). A leak of a session's points (the
+#     fused submaps' buffers, kept until the fix: +5.6 MB live heap per such `small` session)
+#     grows with the session's size. --nodelet-runs N: N runs, the criterion between runs 1
+#     and 2.
 #   scripts/stress.sh [--kills N] [--max-minutes M] [--sessions N] [--only kills|long|nodelets]
 #                     [--nodelet-bag PATH] [--nodelet-duration S] [--nodelet-rate R]
 #                     [--nodelet-runs N]
@@ -51,7 +53,7 @@ while [ $# -gt 0 ]; do
     --nodelet-duration) nodelet_duration="$2"; shift ;;
     --nodelet-rate) nodelet_rate="$2"; shift ;;
     --nodelet-runs) nodelet_runs="$2"; shift ;;
-    -h|--help) sed -n '2,36p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,38p' "$0"; exit 0 ;;
     *) msm_die "unknown argument '$1' (see --help)" ;;
   esac
   shift
