@@ -189,7 +189,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
         g.noalias() += w * J.transpose() * diff;
       }
     }
-    H.triangularView<Eigen::StrictlyLower>() = H.transpose();
+    H.triangularView<Eigen::StrictlyLower>() = H.transpose().eval();  // no aliasing
     result.iterations = iteration;
     result.num_inliers = inliers;
     result.rmse_m = inliers > 0 ? std::sqrt(sum_dist_sq / static_cast<double>(inliers)) : 0.0;
