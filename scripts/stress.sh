@@ -14,10 +14,14 @@
 #     the same work (a first session's merge only stores it). The manager's RSS
 #     (/proc/PID/status VmRSS) is sampled every 2 s; prints per run the scans played and mapped,
 #     the peak RSS, the RSS after the finish (merge and save done) and the map's size on disk.
+#     MapMerging logs the live heap after each merge (glibc mallinfo2 over all arenas: what
+#     a leak makes grow; the RSS also holds freed pages the allocator keeps).
 #     Pass: both sessions merged and saved, each maps at least 90 % of the scans played (fewer:
-#     the pipeline dropped or refused scans), and the RSS after the second finish exceeds the
-#     RSS after the first by at most the map's growth on disk plus 5 % of the first run's peak
-#     RSS. The map is all the state a session leaves behind (map_merging holds it,
+#     the pipeline dropped or refused scans), the live heap after the second finish exceeds the
+#     one after the first by at most the map's growth on disk plus 5 % of the first, and the
+#     RSS after the second finish exceeds the RSS after the first by at most the map's growth
+#     on disk plus 5 % of the first run's peak RSS. The map is all the state a session leaves
+#     behind (map_merging holds it,
 #     place_recognition its descriptor database); the 5 % are for heap fragmentation: freed
 #     pages that still hold a live block stay resident (heaptrack, first 15 s of `small` s00,
 #     3 sessions in one manager: live heap after each finish 11.5 / 11.6 / 11.7 MB while the
@@ -290,7 +294,7 @@ nodelets_twice() {
   rm -rf "${map}" "${map}.new" "${map}.old"
   : > "${samples}"
   local played; played=$(bag_scans "${bag}" "${nodelet_duration}")
-  local -a peak after map_kb scans note
+  local -a peak after heap map_kb scans note
   # The map both runs are merged into: the same scans mapped beforehand by offline_mapper, so
   # that run 1 does what run 2 does (query the history database, register and merge a revisit)
   # and the two are comparable (a first session's merge only stores it).
@@ -363,6 +367,8 @@ nodelets_twice() {
     peak[run]=$(awk -v s="${start_s}" '$1 >= s && $2 > m { m = $2 } END { print m + 0 }' "${samples}")
     [ -n "${after[run]}" ] && [ "${after[run]}" -gt "${peak[run]}" ] && peak[run]=${after[run]}
     map_kb[run]=$(du -sk "${map}" 2>/dev/null | cut -f1)
+    heap[run]=$(grep -E "MapMerging: heap in use after merge ${run}: " "${log}" | tail -n 1 \
+                | sed -E 's/.*: ([0-9.]+) MB.*/\1/')
     scans[run]=$(grep "SubmapManager: session '.*': [0-9]* scans" "${log}" | sed -n "${run}p" \
                  | sed -E 's/.*: ([0-9]+) scans.*/\1/')
     local merged_line; merged_line=$(grep "MapMerging: session '" "${log}" | sed -n "${run}p")
@@ -379,18 +385,33 @@ nodelets_twice() {
   local hwm; hwm=$(awk '/^VmHWM:/ { printf "%.0f", $2 / 1024 }' "/proc/${manager}/status" 2>/dev/null || true)
   stop_launch
   trap - EXIT INT TERM
-  printf '%-4s %8s %8s %12s %17s %7s %s\n' run played mapped peak_rss_mb rss_after_fin_mb map_mb note
+  printf '%-4s %8s %8s %12s %17s %18s %7s %s\n' run played mapped peak_rss_mb rss_after_fin_mb \
+    heap_after_fin_mb map_mb note
   # Run 0: the map made by offline_mapper; the manager started with it loaded, before any scan.
   for ((run = 0; run <= nodelet_runs; run++)); do
     [ -n "${after[run]:-}${note[run]:-}" ] || continue
-    printf '%-4s %8s %8s %12s %17s %7s %s\n' "${run}" "${played}" "${scans[run]:-(offline)}" \
-      "${peak[run]:-?}" "${after[run]:-?}" "$(awk -v k="${map_kb[run]:-0}" 'BEGIN { printf "%.1f", k / 1024 }')" "${note[run]:-}"
+    printf '%-4s %8s %8s %12s %17s %18s %7s %s\n' "${run}" "${played}" "${scans[run]:-(offline)}" \
+      "${peak[run]:-?}" "${after[run]:-?}" "${heap[run]:--}" "$(awk -v k="${map_kb[run]:-0}" 'BEGIN { printf "%.1f", k / 1024 }')" "${note[run]:-}"
   done
   echo "manager peak RSS over all runs (VmHWM): ${hwm:-?} MB; RSS samples: ${samples}"
   if [ ${ok} -eq 1 ] && [ "${nodelet_runs}" -ge 2 ]; then
     local grew=$(( after[2] - after[1] ))
-    local map_grew allowed
+    local map_grew allowed heap_grew heap_allowed
     map_grew=$(awk -v a="${map_kb[1]}" -v b="${map_kb[2]}" 'BEGIN { printf "%.1f", (b - a) / 1024 }')
+    # The leak check proper: the live heap (mallinfo2, logged by MapMerging after each merge).
+    if [ -z "${heap[1]:-}" ] || [ -z "${heap[2]:-}" ]; then
+      echo "nodelets twice: FAIL: no 'heap in use' line of MapMerging for runs 1 and 2 in ${log}"
+      ok=0
+    else
+      heap_grew=$(awk -v a="${heap[1]}" -v b="${heap[2]}" 'BEGIN { printf "%.1f", b - a }')
+      heap_allowed=$(awk -v m="${map_grew}" -v h="${heap[1]}" 'BEGIN { printf "%.1f", (m > 0 ? m : 0) + 0.05 * h }')
+      if awk -v g="${heap_grew}" -v a="${heap_allowed}" 'BEGIN { exit !(g <= a) }'; then
+        echo "nodelets twice: pass: live heap after the finish grew ${heap_grew} MB from run 1 to run 2 (allowed: map growth ${map_grew} MB + 5 % of run 1's live heap = ${heap_allowed} MB)"
+      else
+        echo "nodelets twice: FAIL: live heap after the finish grew ${heap_grew} MB from run 1 to run 2, more than the map growth ${map_grew} MB + 5 % of run 1's live heap (${heap_allowed} MB)"
+        ok=0
+      fi
+    fi
     allowed=$(awk -v m="${map_grew}" -v p="${peak[1]}" 'BEGIN { printf "%.1f", (m > 0 ? m : 0) + 0.05 * p }')
     if awk -v g="${grew}" -v a="${allowed}" 'BEGIN { exit !(g <= a) }'; then
       echo "nodelets twice: pass: RSS after the finish grew ${grew} MB from run 1 to run 2 (allowed: map growth ${map_grew} MB + 5 % of the peak = ${allowed} MB)"

@@ -129,11 +129,11 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     const Eigen::Vector3d p_submap = record.T_submap_sensor * p_sensor;
     const VoxelKey key = ToVoxelKey(p_submap, config_.voxel_size_m);
     if (key != last_key) {
-      const auto inserted =
-          current.voxel_index.try_emplace(key, static_cast<std::uint32_t>(current.voxels.size()));
-      if (inserted.second) current.voxels.emplace_back();
+      const auto found =
+          current.voxel_index.FindOrInsert(key, static_cast<std::uint32_t>(current.voxels.size()));
+      if (found.second) current.voxels.emplace_back();
       last_key = key;
-      last_index = inserted.first->second;
+      last_index = found.first;
     }
     VoxelPoint& voxel = current.voxels[last_index];
     voxel.sum += p_submap;
@@ -172,7 +172,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     ++stats_.voxels_kept;
   }
   open->voxels = {};
-  open->voxel_index = {};
+  open->voxel_index.Release();
   ++stats_.submaps_finished;
   finished_.push_back(std::move(submap));
 }

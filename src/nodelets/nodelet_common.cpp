@@ -84,6 +84,15 @@ void ReleaseFreeHeap() {
 #endif
 }
 
+std::size_t HeapInUseBytes() {
+#ifdef __GLIBC__
+  const struct mallinfo2 info = mallinfo2();  // all arenas (glibc >= 2.33)
+  return info.uordblks + info.hblkhd;
+#else
+  return 0;
+#endif
+}
+
 Frames FramesParam(const ros::NodeHandle& pnh) {
   Frames f;
   f.map = SearchString(pnh, "map_frame", f.map);

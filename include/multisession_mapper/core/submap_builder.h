@@ -21,6 +21,7 @@
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/submap.h"
 #include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/voxel_index_table.h"
 #include "multisession_mapper/core/voxel_key.h"
 
 namespace multisession_mapper {
@@ -106,7 +107,7 @@ class SubmapBuilder {
     /// Voxels in a flat array (the visibility checks sweep all of them, every check) and
     /// their index by voxel key.
     std::vector<VoxelPoint> voxels;
-    VoxelMap<std::uint32_t> voxel_index;
+    VoxelIndexTable voxel_index;
     bool full = false;           ///< a newer submap has started; only checks remain
     double tail_driven_m = 0.0;  ///< driving since it became full
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW

@@ -3,6 +3,7 @@
 // once in the launch file's namespace and found with searchParam from each private namespace.
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -36,6 +37,11 @@ std::string SessionName(const std::string& base, int index);
 
 /// Returns the free pages of the heap to the system (glibc malloc_trim; nothing elsewhere).
 void ReleaseFreeHeap();
+
+/// Bytes of the process's live heap allocations: glibc's mallinfo2 summed over every arena
+/// (allocated chunks plus mmapped blocks); what a leak makes grow, unlike the RSS, which also
+/// holds freed pages the allocator keeps. 0 without glibc.
+std::size_t HeapInUseBytes();
 
 /// Frame names: map, odom, base (REP-105).
 struct Frames {
