@@ -283,6 +283,20 @@ manager_pid() {
 
 rss_mb() { awk '/^VmRSS:/ { printf "%.0f", $2 / 1024 }' "/proc/$1/status" 2>/dev/null; }
 
+# growth_within WHAT BEFORE AFTER MAP_GREW BASE BASE_NAME: passes when AFTER - BEFORE (MB) is at
+# most the map's growth on disk MAP_GREW plus 5 % of BASE; prints the verdict.
+growth_within() {
+  local what=$1 before=$2 after=$3 map_grew=$4 base=$5 base_name=$6 grew allowed
+  grew=$(awk -v a="${before}" -v b="${after}" 'BEGIN { printf "%.1f", b - a }')
+  allowed=$(awk -v m="${map_grew}" -v p="${base}" 'BEGIN { printf "%.1f", (m > 0 ? m : 0) + 0.05 * p }')
+  if awk -v g="${grew}" -v a="${allowed}" 'BEGIN { exit !(g <= a) }'; then
+    echo "nodelets twice: pass: ${what} after the finish grew ${grew} MB from run 1 to run 2 (allowed: map growth ${map_grew} MB + 5 % of ${base_name} = ${allowed} MB)"
+  else
+    echo "nodelets twice: FAIL: ${what} after the finish grew ${grew} MB from run 1 to run 2, more than the map growth ${map_grew} MB + 5 % of ${base_name} (${allowed} MB)"
+    return 1
+  fi
+}
+
 nodelets_twice() {
   local bag="${nodelet_bag}"
   if [ -z "${bag}" ]; then
@@ -395,30 +409,17 @@ nodelets_twice() {
   done
   echo "manager peak RSS over all runs (VmHWM): ${hwm:-?} MB; RSS samples: ${samples}"
   if [ ${ok} -eq 1 ] && [ "${nodelet_runs}" -ge 2 ]; then
-    local grew=$(( after[2] - after[1] ))
-    local map_grew allowed heap_grew heap_allowed
+    local map_grew
     map_grew=$(awk -v a="${map_kb[1]}" -v b="${map_kb[2]}" 'BEGIN { printf "%.1f", (b - a) / 1024 }')
     # The leak check proper: the live heap (mallinfo2, logged by MapMerging after each merge).
     if [ -z "${heap[1]:-}" ] || [ -z "${heap[2]:-}" ]; then
       echo "nodelets twice: FAIL: no 'heap in use' line of MapMerging for runs 1 and 2 in ${log}"
       ok=0
     else
-      heap_grew=$(awk -v a="${heap[1]}" -v b="${heap[2]}" 'BEGIN { printf "%.1f", b - a }')
-      heap_allowed=$(awk -v m="${map_grew}" -v h="${heap[1]}" 'BEGIN { printf "%.1f", (m > 0 ? m : 0) + 0.05 * h }')
-      if awk -v g="${heap_grew}" -v a="${heap_allowed}" 'BEGIN { exit !(g <= a) }'; then
-        echo "nodelets twice: pass: live heap after the finish grew ${heap_grew} MB from run 1 to run 2 (allowed: map growth ${map_grew} MB + 5 % of run 1's live heap = ${heap_allowed} MB)"
-      else
-        echo "nodelets twice: FAIL: live heap after the finish grew ${heap_grew} MB from run 1 to run 2, more than the map growth ${map_grew} MB + 5 % of run 1's live heap (${heap_allowed} MB)"
-        ok=0
-      fi
+      growth_within "live heap" "${heap[1]}" "${heap[2]}" "${map_grew}" "${heap[1]}" \
+        "run 1's live heap" || ok=0
     fi
-    allowed=$(awk -v m="${map_grew}" -v p="${peak[1]}" 'BEGIN { printf "%.1f", (m > 0 ? m : 0) + 0.05 * p }')
-    if awk -v g="${grew}" -v a="${allowed}" 'BEGIN { exit !(g <= a) }'; then
-      echo "nodelets twice: pass: RSS after the finish grew ${grew} MB from run 1 to run 2 (allowed: map growth ${map_grew} MB + 5 % of the peak = ${allowed} MB)"
-    else
-      echo "nodelets twice: FAIL: RSS after the finish grew ${grew} MB from run 1 to run 2, more than the map growth ${map_grew} MB + 5 % of the peak (${allowed} MB)"
-      ok=0
-    fi
+    growth_within "RSS" "${after[1]}" "${after[2]}" "${map_grew}" "${peak[1]}" "the peak" || ok=0
   else
     echo "nodelets twice: FAIL (see the note; log ${log})"
   fi
