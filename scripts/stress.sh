@@ -96,10 +96,14 @@ elapsed() { awk -v a="$1" -v b="$(now)" 'BEGIN { printf "%.2f", b - a }'; }
 
 # ---------------------------------------------------------------------------------------------
 crash_safety() {
-  local sim="${data}/tiny3"
-  simulate tiny 3 "${sim}"
+  # The `small` profile: s00 whole is the old map, the first 300 scans of s02 (about 25 s of
+  # mapping and merging; the `tiny` sessions do not overlap enough to be merged) are the run
+  # that is killed.
+  local sim="${data}/small3"
+  simulate small 3 "${sim}"
   local base="${maps}/kill_base" work="${maps}/kill_work" ref="${maps}/kill_ref"
-  local bag_first="${sim}/s00.bag" bag_next="${sim}/s01.bag"
+  local bag_first="${sim}/s00.bag" bag_next="${sim}/s02.bag"
+  local -a next_args=(--max-scans 300)
   # The old map: the first session, mapped without interruption.
   rm -rf "${base}" "${base}.new" "${base}.old"
   "${bin}/offline_mapper" --bag "${bag_first}" --map "${base}" --quiet
@@ -109,7 +113,8 @@ crash_safety() {
   cp -a "${base}" "${ref}"
   local start; start=$(now)
   set +e
-  "${bin}/offline_mapper" --bag "${bag_next}" --map "${ref}" --quiet 2>"${maps}/kill_ref.log"
+  "${bin}/offline_mapper" --bag "${bag_next}" "${next_args[@]}" --map "${ref}" --quiet \
+    2>"${maps}/kill_ref.log"
   local rc=$?
   set -e
   local run_s; run_s=$(elapsed "${start}")
@@ -122,6 +127,7 @@ crash_safety() {
     echo "      $(tr -d '\n' < "${maps}/kill_ref.log" | cut -c1-200))."
     echo "      Killing the mapping and saving of a first session into an empty map instead."
     rm -rf "${ref}" && start=$(now)
+    next_args=()
     "${bin}/offline_mapper" --bag "${bag_first}" --map "${ref}" --quiet
     run_s=$(elapsed "${start}")
   else
@@ -134,7 +140,7 @@ crash_safety() {
   rm -rf "${ref2}" "${ref2}.new" "${ref2}.old"
   if [ "${mode}" = "merge" ]; then cp -a "${base}" "${ref2}"; fi
   "${bin}/offline_mapper" --bag "$([ "${mode}" = merge ] && echo "${bag_next}" || echo "${bag_first}")" \
-    --map "${ref2}" --quiet 2>/dev/null
+    "${next_args[@]}" --map "${ref2}" --quiet 2>/dev/null
   local strict=1
   if [ "$(field "${ref2}" content_digest)" != "${new_content}" ]; then
     strict=0
@@ -158,7 +164,7 @@ crash_safety() {
     rm -rf "${work}" "${work}.new" "${work}.old"
     if [ "${mode}" = "merge" ]; then cp -a "${base}" "${work}"; fi
     local bag; bag=$([ "${mode}" = merge ] && echo "${bag_next}" || echo "${bag_first}")
-    "${bin}/offline_mapper" --bag "${bag}" --map "${work}" --quiet 2>/dev/null &
+    "${bin}/offline_mapper" --bag "${bag}" "${next_args[@]}" --map "${work}" --quiet 2>/dev/null &
     local pid=$!
     local how
     if (( i % 2 == 1 )); then
