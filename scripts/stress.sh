@@ -139,8 +139,18 @@ crash_safety() {
   local ref2="${maps}/kill_ref2"
   rm -rf "${ref2}" "${ref2}.new" "${ref2}.old"
   if [ "${mode}" = "merge" ]; then cp -a "${base}" "${ref2}"; fi
+  # It also times the save: from <map>.new appearing to the end of the process.
   "${bin}/offline_mapper" --bag "$([ "${mode}" = merge ] && echo "${bag_next}" || echo "${bag_first}")" \
-    "${next_args[@]}" --map "${ref2}" --quiet 2>/dev/null
+    "${next_args[@]}" --map "${ref2}" --quiet 2>/dev/null &
+  local ref2_pid=$! save_start=""
+  while kill -0 "${ref2_pid}" 2>/dev/null; do
+    [ -z "${save_start}" ] && [ -e "${ref2}.new" ] && save_start=$(now)
+    sleep 0.005
+  done
+  wait "${ref2_pid}" || true
+  local save_s=0.1
+  [ -n "${save_start}" ] && save_s=$(elapsed "${save_start}")
+  echo "uninterrupted save: ${save_s} s (kills aimed at the save fall in 0 .. ${save_s} s after it starts)"
   local strict=1
   if [ "$(field "${ref2}" content_digest)" != "${new_content}" ]; then
     strict=0
@@ -173,9 +183,9 @@ crash_safety() {
       sleep "${delay}"
       how="at ${delay} s"
     else
-      # During the save: once <map>.new appears, after a random 0-100 ms.
+      # During the save: once <map>.new appears, after a random part of the save's duration.
       while kill -0 "${pid}" 2>/dev/null && [ ! -e "${work}.new" ]; do sleep 0.005; done
-      local delay; delay=$(awk -v r="${RANDOM}" 'BEGIN { printf "%.3f", 0.1 * r / 32768 }')
+      local delay; delay=$(awk -v s="${save_s}" -v r="${RANDOM}" 'BEGIN { printf "%.3f", s * r / 32768 }')
       sleep "${delay}"
       how="in the save, +${delay} s"
       in_save=$((in_save + 1))
