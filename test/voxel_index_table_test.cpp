@@ -59,6 +59,15 @@ TEST(VoxelIndexTable, MatchesUnorderedMap) {
   }
 }
 
+TEST(VoxelIndexTable, ReserveKeepsTheEntries) {
+  VoxelIndexTable table;
+  for (int i = 0; i < 100; ++i) table.FindOrInsert(VoxelKey(i, -i, 7), static_cast<std::uint32_t>(i));
+  table.Reserve(100000);
+  EXPECT_EQ(table.size(), 100u);
+  for (int i = 0; i < 100; ++i) ASSERT_EQ(table.Find(VoxelKey(i, -i, 7)), static_cast<std::uint32_t>(i));
+  EXPECT_EQ(table.Find(VoxelKey(100, -100, 7)), VoxelIndexTable::kEmpty);
+}
+
 TEST(VoxelIndexTable, ReleaseEmptiesAndTheTableIsReusable) {
   VoxelIndexTable table;
   for (int i = 0; i < 5000; ++i) table.FindOrInsert(VoxelKey(i, 0, 0), static_cast<std::uint32_t>(i));

@@ -63,9 +63,7 @@ StatusOr<VoxelHashMap> VoxelHashMap::Create(const VoxelHashMapConfig& config) {
 VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
     : config_(config),
       inv_voxel_size_(1.0 / config.voxel_size_m),
-      stride_(2 + static_cast<std::size_t>(config.max_points_per_voxel)) {
-  RebuildTable(1024);
-}
+      stride_(2 + static_cast<std::size_t>(config.max_points_per_voxel)) {}
 
 void VoxelHashMap::ClearNeighbourCache() {
   if (neighbour_cache_.empty()) return;
@@ -93,7 +91,7 @@ void VoxelHashMap::Clear() {
   points_.clear();
   normals_cached_ = false;
   removed_once_ = false;
-  RebuildTable(1024);
+  table_.Release();
 }
 
 std::uint64_t VoxelHashMap::Key(const VoxelIndex& index) {
@@ -103,60 +101,26 @@ std::uint64_t VoxelHashMap::Key(const VoxelIndex& index) {
   return (axis(index.x()) << 42) | (axis(index.y()) << 21) | axis(index.z());
 }
 
-namespace {
-std::size_t Mix(std::uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdULL;
-  k ^= k >> 33;
-  return static_cast<std::size_t>(k);
-}
-}  // namespace
-
 int VoxelHashMap::Find(const VoxelIndex& index) const {
-  const std::uint64_t key = Key(index);
-  std::size_t i = Mix(key) & slot_mask_;
-  while (true) {
-    const std::uint64_t k = slot_keys_[i];
-    if (k == key) return slot_voxels_[i];
-    if (k == kEmptySlot) return -1;
-    i = (i + 1) & slot_mask_;
-  }
+  const std::uint32_t id = table_.Find(index);
+  return id == VoxelIndexTable::kEmpty ? -1 : static_cast<int>(id);
 }
 
 int VoxelHashMap::FindOrInsert(const VoxelIndex& index) {
-  const std::uint64_t key = Key(index);
-  std::size_t i = Mix(key) & slot_mask_;
-  while (true) {
-    const std::uint64_t k = slot_keys_[i];
-    if (k == key) return slot_voxels_[i];
-    if (k == kEmptySlot) break;
-    i = (i + 1) & slot_mask_;
-  }
-  const int id = static_cast<int>(voxels_.size());
+  const auto found = table_.FindOrInsert(index, static_cast<std::uint32_t>(voxels_.size()));
+  if (!found.second) return static_cast<int>(found.first);
   ClearNeighbourCache();  // a new voxel: cached neighbourhoods may miss it
   voxels_.emplace_back();
-  voxels_.back().key = key;
+  voxels_.back().index = index;
   points_.resize(voxels_.size() * stride_);
-  if (2 * voxels_.size() > slot_keys_.size()) {
-    RebuildTable(2 * voxels_.size());  // keep the load factor under 1/2
-  } else {
-    slot_keys_[i] = key;
-    slot_voxels_[i] = id;
-  }
-  return id;
+  return static_cast<int>(found.first);
 }
 
-void VoxelHashMap::RebuildTable(std::size_t min_capacity) {
-  std::size_t capacity = 1024;
-  while (capacity < 2 * min_capacity || capacity < 2 * voxels_.size()) capacity <<= 1;
-  slot_keys_.assign(capacity, kEmptySlot);
-  slot_voxels_.assign(capacity, -1);
-  slot_mask_ = capacity - 1;
+void VoxelHashMap::RebuildTable() {
+  table_.Release();
+  table_.Reserve(voxels_.size());
   for (std::size_t id = 0; id < voxels_.size(); ++id) {
-    std::size_t i = Mix(voxels_[id].key) & slot_mask_;
-    while (slot_keys_[i] != kEmptySlot) i = (i + 1) & slot_mask_;
-    slot_keys_[i] = voxels_[id].key;
-    slot_voxels_[i] = static_cast<std::int32_t>(id);
+    table_.FindOrInsert(voxels_[id].index, static_cast<std::uint32_t>(id));
   }
 }
 
@@ -243,7 +207,7 @@ void VoxelHashMap::RemoveFarVoxels(const Eigen::Vector3d& position_m) {
   ClearNeighbourCache();  // ids moved
   voxels_.resize(kept);
   points_.resize(kept * stride_);
-  RebuildTable(voxels_.size());
+  RebuildTable();
 }
 
 bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m,

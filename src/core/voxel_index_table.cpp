@@ -19,10 +19,9 @@ std::size_t VoxelIndexTable::Mix(const VoxelKey& key) {
   return static_cast<std::size_t>(h);
 }
 
-void VoxelIndexTable::Grow() {
+void VoxelIndexTable::Rehash(std::size_t capacity) {
   std::vector<Slot> old;
   old.swap(slots_);
-  const std::size_t capacity = old.empty() ? 1024 : old.size() * 2;
   slots_.assign(capacity, Slot{0, 0, 0, kEmpty});
   mask_ = capacity - 1;
   for (const Slot& s : old) {
@@ -33,9 +32,15 @@ void VoxelIndexTable::Grow() {
   }
 }
 
+void VoxelIndexTable::Reserve(std::size_t count) {
+  std::size_t capacity = slots_.empty() ? 1024 : slots_.size();
+  while (capacity < 2 * count) capacity <<= 1;
+  if (capacity != slots_.size()) Rehash(capacity);
+}
+
 std::pair<std::uint32_t, bool> VoxelIndexTable::FindOrInsert(const VoxelKey& key,
                                                              std::uint32_t index_if_new) {
-  if (2 * (size_ + 1) > slots_.size()) Grow();
+  if (2 * (size_ + 1) > slots_.size()) Reserve(size_ + 1);
   std::size_t i = Mix(key) & mask_;
   while (true) {
     Slot& s = slots_[i];

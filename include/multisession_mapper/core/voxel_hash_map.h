@@ -21,6 +21,7 @@
 #include "multisession_mapper/core/registration_target.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/voxel_index_table.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -79,24 +80,24 @@ class VoxelHashMap : public RegistrationTarget {
   using VoxelIndex = Eigen::Vector3i;
   enum class NormalState : std::uint8_t { kUnknown, kPlanar, kNotPlanar };
   struct Voxel {
-    std::uint64_t key = 0;
+    VoxelIndex index = VoxelIndex::Zero();
     std::uint32_t count = 0;  ///< points stored, in points_ at [id * stride_, + count)
     // Cache filled by FindMatch; reset when this voxel or a neighbour gains points.
     mutable std::vector<Eigen::Vector3d> normals;
     mutable std::vector<NormalState> normal_states;
     std::uint32_t last_insert_epoch = 0;  // AddPoints call that last inserted here
   };
-  static constexpr std::uint64_t kEmptySlot = ~std::uint64_t{0};
 
   explicit VoxelHashMap(const VoxelHashMapConfig& config);
   VoxelIndex IndexOf(const Eigen::Vector3d& p) const;
-  /// Packs a voxel index (21 bits per axis, +-1M voxels) into a table key.
+  /// Packs a voxel index (21 bits per axis, +-1M voxels) into a neighbour-cache key.
   static std::uint64_t Key(const VoxelIndex& index);
   /// Index into voxels_ or -1.
   int Find(const VoxelIndex& index) const;
   /// Index into voxels_, creating an empty voxel when absent.
   int FindOrInsert(const VoxelIndex& index);
-  void RebuildTable(std::size_t min_capacity);
+  /// Re-indexes voxels_ after their ids changed.
+  void RebuildTable();
   void InvalidateNormalsAround(const VoxelIndex& index);
   /// Ids of the 27 voxels around `center` (itself first, then the 6 face, 12 edge and 8
   /// corner neighbours; -1 where empty), cached until the set of voxels changes: an ICP
@@ -122,8 +123,9 @@ class VoxelHashMap : public RegistrationTarget {
   mutable std::unordered_map<std::uint64_t, std::uint32_t> neighbour_cache_;  ///< key -> offset
   mutable std::vector<std::int32_t> neighbour_ids_;  ///< 27 per cached center
   Eigen::Vector3d last_removal_position_m_ = Eigen::Vector3d::Zero();
-  // Open-addressing table (linear probing, power-of-two size) from key to index in voxels_;
-  // ~3x faster lookups than std::unordered_map here, which dominate the ICP's run time.
+  // Voxel index -> id in voxels_ (open addressing: ~3x faster lookups than
+  // std::unordered_map here, which dominate the ICP's run time).
+  VoxelIndexTable table_;
   std::vector<Voxel> voxels_;
   // Voxel i owns points_[i * stride_, (i + 1) * stride_), stride_ = 2 + max_points_per_voxel:
   // the bounding box of its points (low, high corner), then the points. One flat array
@@ -132,9 +134,6 @@ class VoxelHashMap : public RegistrationTarget {
   // the best match so far, and is read with the first points.
   std::size_t stride_ = 2;
   std::vector<Eigen::Vector3d> points_;
-  std::vector<std::uint64_t> slot_keys_;
-  std::vector<std::int32_t> slot_voxels_;
-  std::size_t slot_mask_ = 0;
 };
 
 }  // namespace core

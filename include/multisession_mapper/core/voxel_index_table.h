@@ -1,11 +1,9 @@
 // Open-addressing hash table from voxel keys to 32-bit indices, for the per-point voxel look-ups
-// of the submap builder (every point of every scan). Linear probing over one flat array of
+// of the submap builder (every point of every scan) and the ICP's local map. Linear probing over one flat array of
 // {key, index} slots, power-of-two capacity, at most half full. Replaces an
 // std::unordered_map<VoxelKey, uint32_t> there: no node allocation per voxel and one cache line
 // per probe (benchmark in the issue-5 note: submap building median and profile share).
-// VoxelHashMap (the odometry's local map) still carries a table of the same kind inline
-// (packed 64-bit keys, rebuilt after far voxels are removed); moving it onto this class is
-// open work: it needs a rebuild-after-removal operation here and the ICP benchmark.
+// Also the voxel index of VoxelHashMap, the odometry's local map.
 #pragma once
 
 #include <cstddef>
@@ -35,6 +33,8 @@ class VoxelIndexTable {
   bool empty() const { return size_ == 0; }
   /// Frees the slots (capacity 0).
   void Release();
+  /// Makes room for `count` keys without growing again (load factor at most 1/2).
+  void Reserve(std::size_t count);
 
  private:
   struct Slot {
@@ -42,7 +42,7 @@ class VoxelIndexTable {
     std::uint32_t index;
   };
   static std::size_t Mix(const VoxelKey& key);
-  void Grow();
+  void Rehash(std::size_t capacity);
 
   std::vector<Slot> slots_;
   std::size_t mask_ = 0;
