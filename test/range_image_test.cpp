@@ -81,6 +81,62 @@ TEST(RangeImage, GroundBetweenBeamsIsNeverSeenThrough) {
   EXPECT_EQ(seen_through, 0);
 }
 
+TEST(RangeImage, DeskewedPointsStayInTheirRingsRow) {
+  // De-skewing moves points off their beam's cone: here ground points ahead are lifted and
+  // those behind lowered by up to 0.3 deg of elevation (0.3 m of forward motion during the
+  // sweep, ground 10 m away), more than the 0.1 deg gate. With the ring field each point
+  // still fills its own ring's pixel; gated by elevation, the pixels behind stayed empty,
+  // read as free space, and the ground there was "seen through".
+  LidarScan scan = GroundAndWall(true);
+  for (LidarPoint& p : scan.points) {
+    const Eigen::Vector3d q = p.position_m.cast<double>();
+    if (q.z() > -1.7) continue;  // ground only
+    const double horizontal = q.head<2>().norm();
+    const double lift = 0.3 * M_PI / 180.0 * q.x() / horizontal;
+    const double el = std::atan2(q.z(), horizontal) + lift;
+    const double r = q.norm();
+    p.position_m = (Eigen::Vector3d(q.x() / horizontal * r * std::cos(el),
+                                    q.y() / horizontal * r * std::cos(el), r * std::sin(el)))
+                       .cast<float>();
+  }
+  const RangeImage image(scan, RangeImageConfig());
+  ASSERT_EQ(image.num_rings(), 16u);
+  // A ground point 11.5 m behind the sensor, on the lowered -9 deg beam: the measured ground.
+  const double range = 1.8 / std::sin(9.0 * M_PI / 180.0);
+  const Eigen::Vector3d ground = OnBeam(range, -9.0 - 0.3, 180.0);
+  EXPECT_EQ(image.Check(ground, 0.3 + 0.02 * range), Visibility::kConsistent);
+  // Something floating 4 m in front of that ground is still seen through.
+  EXPECT_EQ(image.Check(OnBeam(range - 4.0, -9.0 - 0.3, 180.0), 0.3), Visibility::kSeenThrough);
+}
+
+TEST(RangeImage, NoReturnIsFreeOnlyInFrontOfTheSurfaceBelow) {
+  RangeImageConfig config;
+  config.no_return_free_range_m = 60.0;
+  const RangeImage image(GroundAndWall(true), config);
+  // Backwards the +1 deg beam returns nothing; the -3 deg beam below it hits the ground at
+  // 34 m. In front of that the empty beam is free space; beyond it, it passed over the ground.
+  const double ground_below = 1.8 / std::sin(3.0 * M_PI / 180.0);
+  EXPECT_EQ(image.Check(OnBeam(ground_below - 10.0, 1.0, 180.0), 0.3), Visibility::kSeenThrough);
+  EXPECT_EQ(image.Check(OnBeam(ground_below + 6.0, 1.0, 180.0), 0.3), Visibility::kUnknown);
+}
+
+TEST(RangeImage, GroundSeenFromATiltedPoseIsNotSeenThrough) {
+  // Ground 19.5 m behind the sensor (elevation -5.3 deg), queried from a pose tilted by
+  // 0.22 deg: it lands on the -5 deg beam, which measured the ground at 20.65 m, 1.15 m
+  // behind it. The range slope of that ground (dr/de ~ 170 m/rad) widens the margin.
+  const RangeImage image(GroundAndWall(true), RangeImageConfig());
+  const double range = 19.5;
+  const double el_deg = std::asin(-1.8 / range) * 180.0 / M_PI + 0.22;
+  const double margin = 0.3 + 0.02 * range;
+  EXPECT_NE(image.Check(OnBeam(range, el_deg, 180.0), margin), Visibility::kSeenThrough);
+  RangeImageConfig no_slope;
+  no_slope.angular_uncertainty_rad = 0.0;
+  EXPECT_EQ(RangeImage(GroundAndWall(true), no_slope).Check(OnBeam(range, el_deg, 180.0), margin),
+            Visibility::kSeenThrough);
+  // A car 12 m away in that direction (the beam now reaches the ground) is seen through.
+  EXPECT_EQ(image.Check(OnBeam(12.0, -5.0, 180.0), 0.3 + 0.02 * 12.0), Visibility::kSeenThrough);
+}
+
 TEST(RangeImage, PointAboveTheFieldOfViewIsUnknown) {
   const RangeImage image(GroundAndWall(true), RangeImageConfig());
   EXPECT_EQ(image.Check(OnBeam(5.0, 40.0, 0.0), 0.3), Visibility::kUnknown);
@@ -93,6 +149,9 @@ TEST(RangeImage, ConfigValidation) {
   EXPECT_FALSE(c.Validate().ok());
   c = RangeImageConfig();
   c.no_return_free_range_m = -1.0;
+  EXPECT_FALSE(c.Validate().ok());
+  c = RangeImageConfig();
+  c.angular_uncertainty_rad = -0.001;
   EXPECT_FALSE(c.Validate().ok());
 }
 

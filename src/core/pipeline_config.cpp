@@ -58,6 +58,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "min_consecutive_seen_through", &d.min_consecutive_seen_through},
       {"in_session_dynamics", "tail_m", &d.tail_m},
       {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
+      {"in_session_dynamics", "angular_uncertainty_rad", &d.range_image.angular_uncertainty_rad},
       {"intra_loops", "enabled", &s.intra_loops.enabled},
       {"intra_loops", "search_radius_m", &s.intra_loops.search_radius_m},
       {"intra_loops", "min_id_gap", &s.intra_loops.min_id_gap},

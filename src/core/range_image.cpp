@@ -26,6 +26,9 @@ Status RangeImageConfig::Validate() const {
   if (!(ring_gap_rad > 0.0 && ring_gap_rad < 0.2)) {
     return Status::Error("range_image.ring_gap_rad must be in (0, 0.2)");
   }
+  if (!(angular_uncertainty_rad >= 0.0 && angular_uncertainty_rad < 0.1)) {
+    return Status::Error("range_image.angular_uncertainty_rad must be in [0, 0.1)");
+  }
   return Status::Ok();
 }
 
@@ -48,17 +51,24 @@ RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config)
   columns_ = static_cast<int>(std::ceil(2.0 * M_PI / config_.azimuth_resolution_rad));
   // Ring elevations: a ring's beam is a cone of fixed elevation. The median of the tangents
   // is the tangent of the median elevation.
+  // Row of each ring id (has_ring), by ascending elevation.
+  std::map<int, int> row_of_ring;
   if (scan.has_ring) {
     std::map<int, std::vector<double>> by_ring;
     for (const LidarPoint& p : scan.points) {
       const double t = ElevationTangent(p.position_m);
       if (std::isfinite(t)) by_ring[p.ring].push_back(t);
     }
+    std::vector<std::pair<double, int>> elevation_ring;
     for (auto& [ring, tangents] : by_ring) {
       std::nth_element(tangents.begin(), tangents.begin() + tangents.size() / 2, tangents.end());
-      ring_elevations_rad_.push_back(std::atan(tangents[tangents.size() / 2]));
+      elevation_ring.emplace_back(std::atan(tangents[tangents.size() / 2]), ring);
     }
-    std::sort(ring_elevations_rad_.begin(), ring_elevations_rad_.end());
+    std::sort(elevation_ring.begin(), elevation_ring.end());
+    for (const auto& [elevation, ring] : elevation_ring) {
+      row_of_ring[ring] = static_cast<int>(ring_elevations_rad_.size());
+      ring_elevations_rad_.push_back(elevation);
+    }
   } else {
     std::vector<double> elevations;
     elevations.reserve(scan.points.size());
@@ -82,8 +92,20 @@ RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config)
     gate_high_tangents_.push_back(TanClamped(elevation + config_.elevation_tolerance_rad));
   }
   ranges_m_.assign(ring_elevations_rad_.size() * columns_, 0.0f);
+  // With a ring field every point goes into its own ring's row. A de-skewed point is no
+  // longer exactly on its beam's cone (0.3 m of motion during the sweep moves ground 10 m
+  // ahead by 0.3 deg), so gating it by elevation would leave pixels empty, and an empty
+  // pixel reads as free space: ground 10-15 m away was then removed as "seen through".
   for (const LidarPoint& p : scan.points) {
-    const int ring = RingOfTangent(ElevationTangent(p.position_m));
+    int ring = -1;
+    if (scan.has_ring) {
+      const auto found = row_of_ring.find(p.ring);
+      if (found != row_of_ring.end() && std::isfinite(ElevationTangent(p.position_m))) {
+        ring = found->second;
+      }
+    } else {
+      ring = RingOfTangent(ElevationTangent(p.position_m));
+    }
     if (ring < 0) continue;
     float& cell = ranges_m_[static_cast<std::size_t>(ring) * columns_ +
                             ColumnOf(p.position_m.x(), p.position_m.y())];
@@ -124,10 +146,33 @@ float RangeImage::MeasuredRange(int ring, int column, double point_range_m) cons
   // No return: free space up to no_return_free_range_m when the neighbours are empty too.
   const bool neighbours_empty =
       row[(column + 1) % columns_] <= 0.0f && row[(column + columns_ - 1) % columns_] <= 0.0f;
-  if (neighbours_empty && point_range_m < config_.no_return_free_range_m) {
-    return std::numeric_limits<float>::infinity();
+  if (!neighbours_empty || point_range_m >= config_.no_return_free_range_m) return 0.0f;
+  // A beam that passed over a surface without returning is free space only in front of that
+  // surface: not beyond what the nearest lower ring with a return measured in this column.
+  // Without this cap, ground seen at a grazing angle from a slightly tilted pose, or behind
+  // a crest, lies under beams that returned nothing and was removed as "seen through".
+  for (int below = ring - 1; below >= 0; --below) {
+    const float measured_below = ranges_m_[static_cast<std::size_t>(below) * columns_ + column];
+    if (measured_below > 0.0f) {
+      return point_range_m < measured_below ? std::numeric_limits<float>::infinity() : 0.0f;
+    }
   }
-  return 0.0f;
+  return std::numeric_limits<float>::infinity();
+}
+
+double RangeImage::RangeSlope(int ring, int column) const {
+  const float here = ranges_m_[static_cast<std::size_t>(ring) * columns_ + column];
+  if (!(here > 0.0f) || !std::isfinite(here)) return 0.0;
+  double slope = std::numeric_limits<double>::infinity();
+  for (const int other : {ring - 1, ring + 1}) {
+    if (other < 0 || other >= static_cast<int>(ring_elevations_rad_.size())) continue;
+    const double gap = std::abs(ring_elevations_rad_[other] - ring_elevations_rad_[ring]);
+    if (gap > config_.max_ring_gap_rad || gap <= 0.0) continue;
+    const float there = ranges_m_[static_cast<std::size_t>(other) * columns_ + column];
+    if (!(there > 0.0f) || !std::isfinite(there)) continue;
+    slope = std::min(slope, std::abs(static_cast<double>(there) - here) / gap);
+  }
+  return std::isfinite(slope) ? slope : 0.0;
 }
 
 Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_m) const {
@@ -135,17 +180,27 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
   const double tangent = ElevationTangent(point_sensor.x(), point_sensor.y(), point_sensor.z());
   if (!std::isfinite(tangent)) return Visibility::kUnknown;
   const double range = point_sensor.norm();
-  auto classify = [&](float measured) {
+  const double elevation = std::atan(tangent);
+  const int column = ColumnOf(point_sensor.x(), point_sensor.y());
+  auto classify = [&](float measured, double margin) {
     if (measured <= 0.0f) return Visibility::kUnknown;
-    if (measured > range + margin_m) return Visibility::kSeenThrough;
-    if (measured < range - margin_m) return Visibility::kOccluded;
+    if (measured > range + margin) return Visibility::kSeenThrough;
+    if (measured < range - margin) return Visibility::kOccluded;
     return Visibility::kConsistent;
   };
 
-  // On a beam: that beam decides.
+  // On a beam: that beam decides. The margin grows where the measured surface is seen at a
+  // grazing angle, by its range slope times the direction uncertainty plus the point's
+  // elevation offset from the beam (see RangeImageConfig::angular_uncertainty_rad).
   const int ring = RingOfTangent(tangent);
   if (ring >= 0) {
-    return classify(MeasuredRange(ring, ColumnOf(point_sensor.x(), point_sensor.y()), range));
+    const float measured = MeasuredRange(ring, column, range);
+    double margin = margin_m;
+    if (config_.angular_uncertainty_rad > 0.0 && measured > 0.0f && std::isfinite(measured)) {
+      margin += RangeSlope(ring, column) *
+                (config_.angular_uncertainty_rad + std::abs(elevation - ring_elevations_rad_[ring]));
+    }
+    return classify(measured, margin);
   }
 
   // Between two beams: free only when both passed beyond the point. On ground seen at a
@@ -159,10 +214,26 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
   if (ring_elevations_rad_[hi] - ring_elevations_rad_[lo] > config_.max_ring_gap_rad) {
     return Visibility::kUnknown;
   }
-  const int column = ColumnOf(point_sensor.x(), point_sensor.y());
-  const Visibility a = classify(MeasuredRange(lo, column, range));
-  const Visibility b = classify(MeasuredRange(hi, column, range));
-  if (a == Visibility::kSeenThrough && b == Visibility::kSeenThrough) return Visibility::kSeenThrough;
+  const float measured_lo = MeasuredRange(lo, column, range);
+  const float measured_hi = MeasuredRange(hi, column, range);
+  const Visibility a = classify(measured_lo, margin_m);
+  const Visibility b = classify(measured_hi, margin_m);
+  if (a == Visibility::kSeenThrough && b == Visibility::kSeenThrough) {
+    // Both passed beyond. When both hit something, the surface between the two hits, taken
+    // as continuous, must also lie beyond the point at the point's elevation, by the margin
+    // plus its range slope times the direction uncertainty: ground seen at a grazing angle
+    // from a slightly tilted pose passes the first test but not this one.
+    if (config_.angular_uncertainty_rad > 0.0 && std::isfinite(measured_lo) &&
+        std::isfinite(measured_hi)) {
+      const double gap = ring_elevations_rad_[hi] - ring_elevations_rad_[lo];
+      const double slope = (static_cast<double>(measured_hi) - measured_lo) / gap;
+      const double interpolated = measured_lo + slope * (elevation - ring_elevations_rad_[lo]);
+      if (interpolated <= range + margin_m + std::abs(slope) * config_.angular_uncertainty_rad) {
+        return Visibility::kUnknown;
+      }
+    }
+    return Visibility::kSeenThrough;
+  }
   // One beam through, the other not: near the ground that is the lower beam landing just in
   // front of the point, which proves nothing either way.
   if (a == Visibility::kSeenThrough || b == Visibility::kSeenThrough) return Visibility::kUnknown;

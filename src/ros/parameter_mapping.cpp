@@ -33,6 +33,8 @@ namespace ros_params {
   F(in_session_dynamics_tail_m, s.submaps.dynamic_filter.tail_m)                            \
   F(in_session_dynamics_no_return_free_range_m,                                             \
     s.submaps.dynamic_filter.range_image.no_return_free_range_m)                            \
+  F(in_session_dynamics_angular_uncertainty_rad,                                            \
+    s.submaps.dynamic_filter.range_image.angular_uncertainty_rad)                           \
   F(intra_loops_enabled, s.intra_loops.enabled)                                             \
   F(intra_loops_search_radius_m, s.intra_loops.search_radius_m)                             \
   F(intra_loops_min_id_gap, s.intra_loops.min_id_gap)                                       \
