@@ -57,6 +57,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "min_seen_through_ratio", &d.min_seen_through_ratio},
       {"in_session_dynamics", "min_consecutive_seen_through", &d.min_consecutive_seen_through},
       {"in_session_dynamics", "tail_m", &d.tail_m},
+      {"in_session_dynamics", "grow_depth", &d.grow_depth},
+      {"in_session_dynamics", "grow_max_scan_gap", &d.grow_max_scan_gap},
       {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
       {"in_session_dynamics", "angular_uncertainty_rad", &d.range_image.angular_uncertainty_rad},
       {"intra_loops", "enabled", &s.intra_loops.enabled},

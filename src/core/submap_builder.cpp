@@ -21,6 +21,8 @@ Status InSessionDynamicFilterConfig::Validate() const {
   if (!(min_seen_through_ratio >= 0.0 && min_seen_through_ratio < 1.0)) {
     return Status::Error("dynamic_filter.min_seen_through_ratio must be in [0, 1)");
   }
+  if (grow_depth < 0) return Status::Error("dynamic_filter.grow_depth must be >= 0");
+  if (grow_max_scan_gap < 0) return Status::Error("dynamic_filter.grow_max_scan_gap must be >= 0");
   if (min_consecutive_seen_through < 0) {
     return Status::Error("dynamic_filter.min_consecutive_seen_through must be >= 0");
   }
@@ -80,6 +82,7 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
       case Visibility::kConsistent:
         if (voxel.consistent < std::numeric_limits<std::uint16_t>::max()) ++voxel.consistent;
         voxel.consecutive_seen_through = 0;
+        voxel.last_consistent_scan = static_cast<std::uint32_t>(stats_.scans);
         break;
       default:
         break;
@@ -157,17 +160,51 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   Submap& submap = open->submap;
   submap.points.clear();
   submap.points.reserve(open->voxels.size());
-  for (const VoxelPoint& voxel : open->voxels) {
+  std::vector<std::uint8_t> dynamic(open->voxels.size(), 0);
+  std::vector<std::uint32_t> frontier;
+  for (std::size_t i = 0; i < open->voxels.size() && c.enabled; ++i) {
+    const VoxelPoint& voxel = open->voxels[i];
     const bool mostly_free =
         voxel.seen_through >= c.min_seen_through &&
         voxel.seen_through > c.min_seen_through_ratio * (voxel.seen_through + voxel.consistent);
     const bool left = c.min_consecutive_seen_through > 0 &&
                       voxel.consecutive_seen_through >= c.min_consecutive_seen_through;
-    const bool dynamic = c.enabled && (mostly_free || left);
-    if (dynamic) {
+    if (mostly_free || left) {
+      dynamic[i] = 1;
+      frontier.push_back(static_cast<std::uint32_t>(i));
+    }
+  }
+  // Growing (see InSessionDynamicFilterConfig::grow_depth).
+  std::vector<std::uint32_t> next;
+  for (int depth = 0; depth < c.grow_depth && !frontier.empty(); ++depth) {
+    next.clear();
+    for (const std::uint32_t u : frontier) {
+      const VoxelPoint& from = open->voxels[u];
+      const VoxelKey key = ToVoxelKey(from.sum / from.count, config_.voxel_size_m);
+      const std::uint64_t latest =
+          static_cast<std::uint64_t>(from.last_consistent_scan) + c.grow_max_scan_gap;
+      for (int dx = -1; dx <= 1; ++dx) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dz = -1; dz <= 1; ++dz) {
+            const std::uint32_t v = open->voxel_index.Find(
+                VoxelKey(key.x() + dx, key.y() + dy, key.z() + dz));
+            if (v == VoxelIndexTable::kEmpty || dynamic[v]) continue;
+            if (open->voxels[v].last_consistent_scan > latest) continue;
+            dynamic[v] = 1;
+            ++stats_.voxels_dropped_grown;
+            next.push_back(v);
+          }
+        }
+      }
+    }
+    frontier.swap(next);
+  }
+  for (std::size_t i = 0; i < open->voxels.size(); ++i) {
+    if (dynamic[i]) {
       ++stats_.voxels_dropped_dynamic;
       continue;
     }
+    const VoxelPoint& voxel = open->voxels[i];
     submap.points.push_back(voxel.sum / voxel.count);
     ++stats_.voxels_kept;
   }

@@ -48,6 +48,16 @@ struct InSessionDynamicFilterConfig {
   int min_consecutive_seen_through = 3;
   /// A finished submap stays open to checks for this much more driving [m].
   double tail_m = 10.0;
+  /// Growing of the dropped voxels, for the lowest parts of moving objects (wheels, bumpers,
+  /// legs): a beam that passes there now hits the ground just behind at a grazing angle, which
+  /// proves nothing, so they get no "seen through" evidence. A kept voxel next to a dropped
+  /// one (26-neighbourhood) is dropped too when it was last measured (consistent) no later
+  /// than `grow_max_scan_gap` scans after that dropped voxel: it was only seen while the
+  /// object was there. The ground under a car that drove on is measured again after it left,
+  /// and a hedge next to a pedestrian is measured after the pedestrian walked on, so they
+  /// stay. Up to `grow_depth` voxels deep (0 disables) [voxels, scans].
+  int grow_depth = 2;
+  int grow_max_scan_gap = 4;
 
   Status Validate() const;
 };
@@ -69,7 +79,8 @@ struct SubmapBuilderConfig {
 struct SubmapBuilderStats {
   std::uint64_t scans = 0;
   std::uint64_t submaps_finished = 0;
-  std::uint64_t voxels_dropped_dynamic = 0;
+  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown ones
+  std::uint64_t voxels_dropped_grown = 0;
   std::uint64_t voxels_kept = 0;
 };
 
@@ -101,6 +112,7 @@ class SubmapBuilder {
     std::uint16_t seen_through = 0;
     std::uint16_t consistent = 0;
     std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
+    std::uint32_t last_consistent_scan = 0;  ///< scan counter of the last consistent check
   };
   struct OpenSubmap {
     Submap submap;
