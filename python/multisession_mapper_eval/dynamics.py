@@ -239,31 +239,44 @@ def ground_truth(truth, map_session_names, truth_names, truth_trajectories, t_ma
 
     truth_names: map session name -> truth session name; truth_trajectories: map session
     name -> tr.Trajectory (world frame). eval_range_m > 0 keeps only points within that
-    distance of a truth scan position of the map's sessions (the pipeline does not map farther
-    returns); `excluded` counts the others. Returns None when no labelled cloud exists.
+    distance of a truth scan position of the map's sessions and, when the truth clouds carry
+    the simulator's `range` field, only points measured from at most that range at least once
+    (the pipeline does not map farther returns); `excluded` counts the others. Returns None
+    when no labelled cloud exists.
     """
     clouds = []
     session_points = {}
+    excluded = 0
     for name in map_session_names:
         loaded = truth.labels(truth_names[name]) if truth_names.get(name) else None
         if loaded is not None:
-            clouds.append(loaded)
             session_points[name] = loaded[0]
+            points, labels, ids = loaded[:3]
+            ranges = loaded[3] if len(loaded) > 3 else None
+            if eval_range_m and eval_range_m > 0 and ranges is not None:
+                # Returns measured only from farther than the pipeline's range limit could
+                # never be mapped (0: unknown range, kept).
+                seen = (ranges <= 0) | (ranges <= eval_range_m)
+                excluded += int(np.sum(~seen))
+                points, labels, ids = points[seen], labels[seen], ids[seen]
+            clouds.append((points, labels, ids, loaded[:3]))
     if not clouds:
         return None
     points = np.vstack([c[0] for c in clouds])
     labels = np.concatenate([c[1] for c in clouds])
     object_ids = np.concatenate([c[2] for c in clouds])
-    all_points, all_labels, all_ids = points, labels, object_ids
+    # Labels are transferred from every labelled point, also those beyond the range limit.
+    all_points = np.vstack([c[3][0] for c in clouds])
+    all_labels = np.concatenate([c[3][1] for c in clouds])
+    all_ids = np.concatenate([c[3][2] for c in clouds])
     keep = deduplicate(points, object_ids, label_voxel_m)
     points, labels, object_ids = points[keep], labels[keep], object_ids[keep]
-    excluded = 0
     if eval_range_m and eval_range_m > 0:
         positions = [truth_trajectories[n].positions for n in map_session_names
                      if n in truth_trajectories]
         if positions:
             inside = neighbors.has_neighbor_within(np.vstack(positions), points, eval_range_m)
-            excluded = int(np.sum(~inside))
+            excluded += int(np.sum(~inside))
             points, labels, object_ids = points[inside], labels[inside], object_ids[inside]
     # world.yaml names sessions by the simulator's names: translate to map names.
     to_map = {truth_names[m]: m for m in map_session_names if truth_names.get(m)}

@@ -214,14 +214,17 @@ class Truth(object):
         return self._trajectories[name]
 
     def labels(self, name):
-        """(points (N,3) world frame, label (N,), object_id (N,)) or None when absent."""
+        """(points (N,3) world frame, label (N,), object_id (N,), range (N,) or None) or None
+        when absent. range: the smallest sensor range at which the point's voxel was measured
+        (simulator field `range`; None in truth written before it existed)."""
         entry = self.sessions.get(name, {})
         path = os.path.join(self.path, entry.get('labels', 'truth/%s_labels.pcd' % name))
         if not os.path.isfile(path):
             return None
         cloud = pcd.read_pcd(path)
+        ranges = (np.asarray(cloud['range']).astype(np.float64) if 'range' in cloud else None)
         return (pcd.xyz(cloud), np.asarray(cloud['label']).astype(np.int64),
-                np.asarray(cloud['object_id']).astype(np.int64))
+                np.asarray(cloud['object_id']).astype(np.int64), ranges)
 
     @property
     def objects(self):

@@ -150,6 +150,7 @@ SimulatedScan Vlp16::Simulate(const RayCaster& caster,
       truth.position_m = world_hit.cast<float>();
       truth.label = hit.object_class;
       truth.object_id = hit.object_id;
+      truth.range_m = static_cast<float>(hit.range_m);
       out.truth.push_back(truth);
     }
   }

@@ -39,10 +39,12 @@
 #include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/ray_voxel_grid.h"
 #include "multisession_mapper/core/trajectory_io.h"
+#include "multisession_mapper/sim/label_cloud.h"
 #include "multisession_mapper/tools/cli.h"
 
 namespace msm = multisession_mapper;
 namespace core = multisession_mapper::core;
+namespace sim = multisession_mapper::sim;
 
 namespace {
 
@@ -73,56 +75,19 @@ struct TruthCloud {
   std::vector<std::uint32_t> object_ids;
 };
 
-// The simulator's labels PCD: packed binary x y z (float32) label (uint8) object_id (uint32).
+// The simulator's labels PCD, read with the simulator's own reader.
 core::StatusOr<TruthCloud> ReadLabels(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return core::Status::Error("cannot open " + path);
-  std::string line;
-  std::size_t points = 0;
-  std::vector<std::string> fields;
-  std::vector<int> sizes;
-  while (std::getline(in, line)) {
-    if (line.rfind("FIELDS", 0) == 0 || line.rfind("SIZE", 0) == 0) {
-      std::vector<std::string> tokens;
-      std::size_t pos = 0;
-      while ((pos = line.find_first_not_of(' ', pos)) != std::string::npos) {
-        const std::size_t end = line.find(' ', pos);
-        tokens.push_back(line.substr(pos, end - pos));
-        pos = end;
-      }
-      tokens.erase(tokens.begin());
-      if (line[0] == 'F') {
-        fields = tokens;
-      } else {
-        for (const std::string& t : tokens) sizes.push_back(std::stoi(t));
-      }
-    } else if (line.rfind("POINTS", 0) == 0) {
-      points = std::stoul(line.substr(7));
-    } else if (line.rfind("DATA", 0) == 0) {
-      if (line.find("binary") == std::string::npos || line.find("compressed") != std::string::npos) {
-        return core::Status::Error(path + ": expected DATA binary");
-      }
-      break;
-    }
-  }
-  const std::vector<std::string> expected = {"x", "y", "z", "label", "object_id"};
-  if (fields != expected || sizes != std::vector<int>{4, 4, 4, 1, 4}) {
-    return core::Status::Error(path + ": unexpected fields");
-  }
+  auto read = sim::LabelCloud::ReadPcd(path);
+  if (!read.ok()) return read.status();
   TruthCloud cloud;
-  std::vector<char> buffer(points * 17);
-  in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  if (!in) return core::Status::Error(path + ": truncated");
-  cloud.points.resize(points);
-  cloud.labels.resize(points);
-  cloud.object_ids.resize(points);
-  for (std::size_t i = 0; i < points; ++i) {
-    const char* p = buffer.data() + i * 17;
-    float xyz[3];
-    std::memcpy(xyz, p, 12);
-    cloud.points[i] = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
-    cloud.labels[i] = static_cast<std::uint8_t>(p[12]);
-    std::memcpy(&cloud.object_ids[i], p + 13, 4);
+  const std::vector<sim::TruthPoint>& truth = read.value();
+  cloud.points.resize(truth.size());
+  cloud.labels.resize(truth.size());
+  cloud.object_ids.resize(truth.size());
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    cloud.points[i] = truth[i].position_m.cast<double>();
+    cloud.labels[i] = static_cast<std::uint8_t>(truth[i].label);
+    cloud.object_ids[i] = truth[i].object_id;
   }
   return cloud;
 }

@@ -153,3 +153,31 @@ def test_footprint_rule_respects_the_mapping_range():
                                              far, 60.0) == set()
     assert dynamics.low_dynamic_by_footprint([car], ['a', 'b'], {'b': ground}, 0.3, 5,
                                              far, 100.0) == {1}
+
+
+class _TruthWithRanges(object):
+    """Truth of one session whose labels carry the simulator's `range` field."""
+
+    def __init__(self, points, labels, ids, ranges):
+        self._labels = (points, labels, ids, ranges)
+        self.objects = []
+
+    def labels(self, name):
+        return self._labels
+
+
+def test_points_measured_only_beyond_the_range_limit_are_excluded():
+    # Three wall points next to the trajectory: one seen from 20 m, one only from 75 m, one of
+    # unknown range (0: kept). All within 60 m of a scan position, so only the range field
+    # can tell that the pipeline (range limit 60 m) could never have mapped the second.
+    points = np.array([[10.0, 0.0, 1.0], [10.0, 5.0, 1.0], [10.0, 10.0, 1.0]])
+    truth = _TruthWithRanges(points, np.full(3, 2), np.full(3, 5), np.array([20.0, 75.0, 0.0]))
+    trajectory = tr.Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4), np.eye(4)]))
+    gt = dynamics.ground_truth(truth, ['s00'], {'s00': 's00'}, {'s00': trajectory}, np.eye(4),
+                               30.0, 0.1, 60.0)
+    assert gt.excluded == 1
+    np.testing.assert_allclose(gt.points, points[[0, 2]])
+    assert len(gt.all_points) == 3  # labels still transfer from every point
+    without_limit = dynamics.ground_truth(truth, ['s00'], {'s00': 's00'}, {'s00': trajectory},
+                                          np.eye(4), 30.0, 0.1, 0.0)
+    assert without_limit.excluded == 0 and len(without_limit.points) == 3

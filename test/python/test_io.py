@@ -31,7 +31,8 @@ def test_truth_reader(synthetic_dirs):
     assert truth.resolve('s01') == 's01' and truth.resolve('nope') is None
     t = truth.trajectory('s00')
     np.testing.assert_allclose(t.poses[0], synthetic_case.T_WORLD_MAP, atol=1e-8)
-    points, labels, ids = truth.labels('s01')
+    points, labels, ids, ranges = truth.labels('s01')
+    assert ranges is None  # written without the simulator's range field
     assert len(points) == len(labels) == len(ids) == 6 + 105 + 10 + 6 + 3 + 5 + 4
     assert set(labels.tolist()) == {0, 1, 6, 7, 9, 10}
 

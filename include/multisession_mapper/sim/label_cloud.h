@@ -1,6 +1,8 @@
 // Labelled ground-truth cloud of a session (truth/<session>_labels.pcd, docs/simulator.md):
 // exact hit positions in the world frame with their class and object id, one point per voxel
-// (the first hit, in scan order, so the output does not depend on threads).
+// (the first hit, in scan order, so the output does not depend on threads), and the smallest
+// range from which any return of that voxel was measured (so an evaluation can leave out
+// what a pipeline with a shorter range limit could never have mapped).
 #pragma once
 
 #include <cstdint>
@@ -17,7 +19,8 @@ namespace sim {
 
 class LabelCloud {
  public:
-  /// `voxel_m` > 0: keep the first point per cubic voxel of that size; 0: keep every point.
+  /// `voxel_m` > 0: keep the first point per cubic voxel of that size (with the smallest
+  /// range_m of the voxel's points); 0: keep every point.
   explicit LabelCloud(double voxel_m);
 
   void Add(const TruthPoint& point);
@@ -25,17 +28,22 @@ class LabelCloud {
   std::size_t size() const { return points_.size(); }
   const std::vector<TruthPoint>& points() const { return points_; }
 
-  /// Binary PCD v0.7 with packed fields x y z (F4) label (U1) object_id (U4), 17 bytes/point.
+  /// Binary PCD v0.7 with packed fields x y z (F4) label (U1) object_id (U4) range (F4),
+  /// 21 bytes/point.
   core::Status WritePcd(const std::string& path) const;
-  /// Reads a file written by WritePcd (binary or ascii, same fields).
+  /// Reads a file written by WritePcd (binary or ascii), or by earlier versions without the
+  /// range field (range_m = 0).
   static core::StatusOr<std::vector<TruthPoint>> ReadPcd(const std::string& path);
 
  private:
-  /// Open-addressing set of occupied voxel keys (linear probing; 0 marks an empty slot).
-  bool InsertKey(std::uint64_t key);
+  /// Open-addressing map of occupied voxel keys to point indices (linear probing; key 0
+  /// marks an empty slot). Returns the index of the key's point; inserts `index_if_new`
+  /// when the key is new (second: inserted).
+  std::pair<std::uint32_t, bool> InsertKey(std::uint64_t key, std::uint32_t index_if_new);
 
   double voxel_m_;
   std::vector<std::uint64_t> table_;
+  std::vector<std::uint32_t> table_index_;
   std::size_t table_used_ = 0;
   std::vector<TruthPoint> points_;
 };

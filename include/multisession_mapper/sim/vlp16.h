@@ -40,6 +40,9 @@ struct TruthPoint {
   Eigen::Vector3f position_m = Eigen::Vector3f::Zero();
   ObjectClass label = ObjectClass::kTerrain;
   std::uint32_t object_id = 0;
+  /// True range from the sensor at which this return was measured [m]; in a LabelCloud the
+  /// smallest range of all returns of its voxel (0: unknown, e.g. read from an old file).
+  float range_m = 0.0f;
 };
 
 struct SimulatedScan {
