@@ -70,6 +70,11 @@ def build_parser():
     p.add_argument('--rpe-all-pairs', action='store_true',
                    help='RPE over all pairs (evo_rpe --all_pairs, tolerance 10%% of delta) '
                    'instead of consecutive ones')
+    p.add_argument('--submap-origins', choices=('estimated', 'truth'), default='estimated',
+                   help='where the dynamics part places each submap: its estimated origin '
+                        '(default), or its true origin, which measures the content of the map '
+                        '(what was removed and kept) without its alignment error (a diagnosis; '
+                        'not a result of the pipeline)')
     p.add_argument('--no-dynamics', action='store_true', help='skip the dynamic-removal part')
     p.add_argument('--no-plots', action='store_true', help='do not write PNG plots')
     p.add_argument('--quiet', action='store_true', help='do not print the tables')
@@ -115,6 +120,13 @@ def _t_map_world(map_dir, truth_trajectories):
             # The origin of submap 0 is the identity by construction; divide it out anyway.
             return tr.inverse(t_world_sensor @ tr.inverse(origin_submap.origin))
     return tr.inverse(trajectory.poses[0])
+
+
+def _true_origin(submap, truth_world, t_map_world, tolerance_s):
+    """The truth sensor pose (map frame) at the submap's first stamp, or None."""
+    trajectory = truth_world.get(submap.session)
+    pose = trajectory.lookup(submap.first_stamp, tolerance_s) if trajectory is not None else None
+    return None if pose is None else t_map_world @ pose
 
 
 def _trajectory_figures(estimate, truth_map, odom, options, warnings, name):
@@ -241,10 +253,18 @@ def run(options):
             active = [sm for sm in map_dir.submaps_of(name) if sm.status == 'active']
             clouds = []
             for sm in active:
-                if os.path.isfile(sm.file):
-                    clouds.append(sm.load_points())
-                else:
+                if not os.path.isfile(sm.file):
                     warnings.append('missing submap file %s' % sm.file)
+                elif options.submap_origins == 'truth':
+                    true_origin = _true_origin(sm, truth_world, t_map_world,
+                                               options.stamp_tolerance_s)
+                    if true_origin is None:
+                        warnings.append('no truth pose for submap %s/%d: left out'
+                                        % (sm.session, sm.id))
+                    else:
+                        clouds.append(sm.load_points(true_origin))
+                else:
+                    clouds.append(sm.load_points())
             map_points[name] = np.vstack(clouds) if clouds else np.zeros((0, 3))
         plot_data['map_points'] = map_points
         removed = [map_dir.removed_points(n) for n in map_dir.session_names]
@@ -286,6 +306,7 @@ def run(options):
             figures['points']['outside_eval_range'] = gt.excluded
             figures['observed_rule'] = options.observed_rule
             figures['observe_radius_m'] = options.observe_radius_m
+            figures['submap_origins'] = options.submap_origins
             figures['label_voxel_m'] = voxel
             result['dynamics'] = figures
 

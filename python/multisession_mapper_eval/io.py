@@ -94,9 +94,11 @@ class Submap(object):
     def key(self):
         return (self.session, self.id)
 
-    def load_points(self):
-        """Points of the submap in the map frame, (N, 3)."""
-        return tr.transform_points(self.origin, pcd.xyz(pcd.read_pcd(self.file)))
+    def load_points(self, origin=None):
+        """Points of the submap in the map frame, (N, 3), placed at `origin` (4x4; default:
+        the estimated origin)."""
+        return tr.transform_points(self.origin if origin is None else origin,
+                                   pcd.xyz(pcd.read_pcd(self.file)))
 
 
 class LoopRow(object):

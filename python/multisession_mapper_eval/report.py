@@ -92,8 +92,12 @@ def markdown(report):
                          _fmt(d[key]['aa'], '%.2f', 100), _fmt(d[key]['ha'], '%.2f', 100),
                          d['points'][key if key != 'all_dynamic' else 'low'] +
                          (d['points']['high'] if key == 'all_dynamic' else 0)])
-        parts += ['## Dynamic removal (DynamicMap definitions, %%; kept radius %.2f m)'
-                  % d['kept_radius_m'], '',
+        origins = ''
+        if d.get('submap_origins') == 'truth':
+            origins = ('; submaps at their TRUE origins: the content of the map without its '
+                       'alignment error, a diagnosis')
+        parts += ['## Dynamic removal (DynamicMap definitions, %%; kept radius %.2f m%s)'
+                  % (d['kept_radius_m'], origins), '',
                   _table(['set', 'SA', 'DA', 'AA', 'HA', 'GT points'], rows), '']
     else:
         parts += ['## Dynamic removal', '', 'not evaluated: %s' % d.get('reason', ''), '']

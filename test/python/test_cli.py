@@ -153,3 +153,50 @@ def test_truth_in_map_frame_is_written(report):
     t = tr.read_tum(os.path.join(out, 'truth_map_frame', 's01.tum'))
     assert len(t) == 100
     assert abs(t.positions[5][0] - 5.0) < 1e-6 and abs(t.positions[5][1] - 2.0) < 1e-6
+
+
+def test_submap_origins_truth_measures_the_content_without_the_alignment(synthetic_dirs,
+                                                                         tmp_path):
+    # The synthetic submaps sit at their true origins, and all points are in s00/0. A copy moves
+    # those points into s00/1 (same place in the map) and then moves that submap's origin by
+    # 3 m. (s00/0 cannot be moved: its origin anchors the map frame.) Placed at the estimated
+    # origins the copy loses static points; placed at the true origins (the diagnosis) it scores
+    # what the unmodified map scores.
+    import shutil
+    import numpy as np
+    import yaml
+    from multisession_mapper_eval import pcd
+    from multisession_mapper_eval import trajectory as tr
+    shifted = str(tmp_path / 'shifted')
+    shutil.copytree(synthetic_dirs[0], shifted)
+    path = os.path.join(shifted, 'manifest.yaml')
+    with open(path) as f:
+        manifest = yaml.safe_load(f)
+    entries = {(s['session'], s['id']): s for s in manifest['submaps']}
+    o0 = tr.pose_from_list(entries[('s00', 0)]['origin'])
+    o1 = tr.pose_from_list(entries[('s00', 1)]['origin'])
+    points = pcd.xyz(pcd.read_pcd(os.path.join(shifted, 'submaps/s00/0.pcd')))
+    moved = tr.transform_points(tr.inverse(o1) @ o0, points).astype(np.float32)
+    pcd.write_pcd(os.path.join(shifted, 'submaps/s00/1.pcd'),
+                  {'x': moved[:, 0], 'y': moved[:, 1], 'z': moved[:, 2]})
+    far = np.array([0.0], np.float32)
+    pcd.write_pcd(os.path.join(shifted, 'submaps/s00/0.pcd'),
+                  {'x': far, 'y': far, 'z': far - 50.0})
+    entries[('s00', 1)]['origin'][0] += 3.0
+    with open(path, 'w') as f:
+        yaml.safe_dump(manifest, f, sort_keys=False)
+
+    def dynamics_of(map_dir, origins):
+        out = str(tmp_path / ('out_%s_%s' % (os.path.basename(map_dir), origins)))
+        assert cli.main(['--map', map_dir, '--truth', synthetic_dirs[1], '--out', out,
+                         '--quiet', '--no-plots', '--submap-origins', origins]) == 0
+        with open(os.path.join(out, 'report.json')) as f:
+            return json.load(f)['dynamics']
+
+    original = dynamics_of(synthetic_dirs[0], 'estimated')
+    assert dynamics_of(synthetic_dirs[0], 'truth')['static'] == original['static']
+    assert dynamics_of(shifted, 'estimated')['static']['sa'] < original['static']['sa']
+    truth_origins = dynamics_of(shifted, 'truth')
+    assert truth_origins['submap_origins'] == 'truth'
+    assert truth_origins['static'] == original['static']
+    assert truth_origins['low'] == original['low'] and truth_origins['high'] == original['high']
