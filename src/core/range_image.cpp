@@ -180,7 +180,6 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
   const double tangent = ElevationTangent(point_sensor.x(), point_sensor.y(), point_sensor.z());
   if (!std::isfinite(tangent)) return Visibility::kUnknown;
   const double range = point_sensor.norm();
-  const double elevation = std::atan(tangent);
   const int column = ColumnOf(point_sensor.x(), point_sensor.y());
   auto classify = [&](float measured, double margin) {
     if (measured <= 0.0f) return Visibility::kUnknown;
@@ -197,8 +196,9 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
     const float measured = MeasuredRange(ring, column, range);
     double margin = margin_m;
     if (config_.angular_uncertainty_rad > 0.0 && measured > 0.0f && std::isfinite(measured)) {
-      margin += RangeSlope(ring, column) *
-                (config_.angular_uncertainty_rad + std::abs(elevation - ring_elevations_rad_[ring]));
+      // atan only here: most checks never need the elevation itself.
+      margin += RangeSlope(ring, column) * (config_.angular_uncertainty_rad +
+                                            std::abs(std::atan(tangent) - ring_elevations_rad_[ring]));
     }
     return classify(measured, margin);
   }
@@ -227,7 +227,8 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
         std::isfinite(measured_hi)) {
       const double gap = ring_elevations_rad_[hi] - ring_elevations_rad_[lo];
       const double slope = (static_cast<double>(measured_hi) - measured_lo) / gap;
-      const double interpolated = measured_lo + slope * (elevation - ring_elevations_rad_[lo]);
+      const double interpolated =
+          measured_lo + slope * (std::atan(tangent) - ring_elevations_rad_[lo]);
       if (interpolated <= range + margin_m + std::abs(slope) * config_.angular_uncertainty_rad) {
         return Visibility::kUnknown;
       }
