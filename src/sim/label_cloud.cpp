@@ -5,8 +5,6 @@
 #include <fstream>
 #include <sstream>
 
-#include "multisession_mapper/sim/counter_rng.h"
-
 namespace multisession_mapper {
 namespace sim {
 
@@ -14,15 +12,9 @@ LabelCloud::LabelCloud(double voxel_m) : voxel_m_(voxel_m > 0.0 ? voxel_m : 0.0)
 
 void LabelCloud::Add(const TruthPoint& point) {
   if (voxel_m_ > 0.0) {
-    // 21 bits per axis around the origin: +-104 km at 0.1 m.
-    auto q = [&](float v) {
-      return static_cast<std::uint64_t>(
-                 static_cast<std::int64_t>(std::floor(v / voxel_m_)) + (1 << 20)) &
-             0x1FFFFF;
-    };
-    const std::uint64_t key =
-        q(point.position_m.x()) | (q(point.position_m.y()) << 21) | (q(point.position_m.z()) << 42);
-    const auto found = InsertKey(key + 1, static_cast<std::uint32_t>(points_.size()));
+    const auto found =
+        voxels_.FindOrInsert(core::ToVoxelKey(point.position_m.cast<double>(), voxel_m_),
+                             static_cast<std::uint32_t>(points_.size()));
     if (!found.second) {
       float& range = points_[found.first].range_m;
       if (point.range_m > 0.0f && (range <= 0.0f || point.range_m < range)) range = point.range_m;
@@ -30,32 +22,6 @@ void LabelCloud::Add(const TruthPoint& point) {
     }
   }
   points_.push_back(point);
-}
-
-std::pair<std::uint32_t, bool> LabelCloud::InsertKey(std::uint64_t key,
-                                                     std::uint32_t index_if_new) {
-  if (2 * (table_used_ + 1) > table_.size()) {
-    std::vector<std::uint64_t> old;
-    std::vector<std::uint32_t> old_index;
-    old.swap(table_);
-    old_index.swap(table_index_);
-    table_.assign(std::max<std::size_t>(1 << 16, old.size() * 2), 0);
-    table_index_.assign(table_.size(), 0);
-    table_used_ = 0;
-    for (std::size_t i = 0; i < old.size(); ++i) {
-      if (old[i] != 0) InsertKey(old[i], old_index[i]);
-    }
-  }
-  const std::size_t mask = table_.size() - 1;
-  for (std::size_t i = Mix64(key) & mask;; i = (i + 1) & mask) {
-    if (table_[i] == key) return {table_index_[i], false};
-    if (table_[i] == 0) {
-      table_[i] = key;
-      table_index_[i] = index_if_new;
-      ++table_used_;
-      return {index_if_new, true};
-    }
-  }
 }
 
 void LabelCloud::Add(const std::vector<TruthPoint>& points) {

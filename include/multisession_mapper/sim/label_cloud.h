@@ -12,6 +12,8 @@
 #include <Eigen/Core>
 
 #include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/voxel_index_table.h"
+#include "multisession_mapper/core/voxel_key.h"
 #include "multisession_mapper/sim/vlp16.h"
 
 namespace multisession_mapper {
@@ -36,15 +38,8 @@ class LabelCloud {
   static core::StatusOr<std::vector<TruthPoint>> ReadPcd(const std::string& path);
 
  private:
-  /// Open-addressing map of occupied voxel keys to point indices (linear probing; key 0
-  /// marks an empty slot). Returns the index of the key's point; inserts `index_if_new`
-  /// when the key is new (second: inserted).
-  std::pair<std::uint32_t, bool> InsertKey(std::uint64_t key, std::uint32_t index_if_new);
-
   double voxel_m_;
-  std::vector<std::uint64_t> table_;
-  std::vector<std::uint32_t> table_index_;
-  std::size_t table_used_ = 0;
+  core::VoxelIndexTable voxels_;  ///< voxel -> index of its point in points_
   std::vector<TruthPoint> points_;
 };
 
