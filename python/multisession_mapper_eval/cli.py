@@ -122,13 +122,6 @@ def _t_map_world(map_dir, truth_trajectories):
     return tr.inverse(trajectory.poses[0])
 
 
-def _true_origin(submap, truth_world, t_map_world, tolerance_s):
-    """The truth sensor pose (map frame) at the submap's first stamp, or None."""
-    trajectory = truth_world.get(submap.session)
-    pose = trajectory.lookup(submap.first_stamp, tolerance_s) if trajectory is not None else None
-    return None if pose is None else t_map_world @ pose
-
-
 def _trajectory_figures(estimate, truth_map, odom, options, warnings, name):
     keys = {'ate_rmse_m': None, 'ate_mean_m': None, 'ate_median_m': None, 'ate_max_m': None,
             'ate_rmse_aligned_m': None, 'ate_poses': 0, 'odom_ate_rmse_aligned_m': None,
@@ -248,6 +241,7 @@ def run(options):
                  'map_points': None, 'removed': None}
     needs_points = not options.no_dynamics or not options.no_plots
     map_points = {}
+    truth_lookup = loops.TruthLookup(truth_world, options.stamp_tolerance_s)
     if needs_points:
         for name in map_dir.session_names:
             active = [sm for sm in map_dir.submaps_of(name) if sm.status == 'active']
@@ -256,13 +250,12 @@ def run(options):
                 if not os.path.isfile(sm.file):
                     warnings.append('missing submap file %s' % sm.file)
                 elif options.submap_origins == 'truth':
-                    true_origin = _true_origin(sm, truth_world, t_map_world,
-                                               options.stamp_tolerance_s)
+                    true_origin = truth_lookup.origin(sm)
                     if true_origin is None:
                         warnings.append('no truth pose for submap %s/%d: left out'
                                         % (sm.session, sm.id))
                     else:
-                        clouds.append(sm.load_points(true_origin))
+                        clouds.append(sm.load_points(t_map_world @ true_origin))
                 else:
                     clouds.append(sm.load_points())
             map_points[name] = np.vstack(clouds) if clouds else np.zeros((0, 3))

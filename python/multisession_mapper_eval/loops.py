@@ -34,7 +34,7 @@ class LoopOptions(object):
         self.stamp_tolerance_s = stamp_tolerance_s
 
 
-class _TruthLookup(object):
+class TruthLookup(object):
     """Ground-truth poses of submap origins and scan positions (world frame)."""
 
     def __init__(self, truth_trajectories, tolerance_s):
@@ -44,6 +44,10 @@ class _TruthLookup(object):
     def pose(self, session, stamp):
         trajectory = self.trajectories.get(session)
         return None if trajectory is None else trajectory.lookup(stamp, self.tolerance_s)
+
+    def origin(self, submap):
+        """Truth pose (world frame) of the submap's origin: the pose at its first stamp."""
+        return self.pose(submap.session, submap.first_stamp)
 
     def scan_positions(self, submap):
         trajectory = self.trajectories.get(submap.session)
@@ -67,8 +71,8 @@ def _judge(loop, submaps_by_key, lookup, options):
     history = submaps_by_key.get((loop.history_session, loop.history_submap))
     if current is None or history is None:
         return None, None, None
-    t_c = lookup.pose(current.session, current.first_stamp)
-    t_h = lookup.pose(history.session, history.first_stamp)
+    t_c = lookup.origin(current)
+    t_h = lookup.origin(history)
     if t_c is None or t_h is None:
         return None, None, None
     if loop.pose is None:
@@ -91,7 +95,7 @@ def session_table(map_dir, session_index, truth_trajectories, options):
     """The loop figures of one session (a dict with the report.json keys)."""
     name = map_dir.session_names[session_index]
     history_names = map_dir.session_names[:session_index]
-    lookup = _TruthLookup(truth_trajectories, options.stamp_tolerance_s)
+    lookup = TruthLookup(truth_trajectories, options.stamp_tolerance_s)
     submaps_by_key = {s.key: s for s in map_dir.submaps}
     rows = map_dir.loops(name)
     ids = sorted({s.id for s in map_dir.submaps_of(name)}
