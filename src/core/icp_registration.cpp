@@ -158,6 +158,10 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     const std::size_t inliers = pairs_found.size();
     std::size_t pairs = 0;  // inliers that entered the least squares
     double sum_dist_sq = 0.0;
+    // Rotation about the source origin's current position, not the target origin: far from
+    // the target origin (a robot 300 m into its map) a rotation about the target origin is
+    // mostly a translation, the two are coupled, and the convergence thresholds mean nothing.
+    const Eigen::Vector3d center = pose.translation();
     for (Pair& pair : pairs_found) {
       TargetMatch& m = pair.match;
       const Eigen::Vector3d p = pose * source[pair.index];
@@ -176,14 +180,14 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
         const double r = m.normal.dot(diff);
         Vector6d J;
         J.head<3>() = m.normal;
-        J.tail<3>() = p.cross(m.normal);
+        J.tail<3>() = (p - center).cross(m.normal);
         const double w = KernelWeight(kernel, scale_sq, r * r);
         H.selfadjointView<Eigen::Upper>().rankUpdate(J, w);  // upper triangle only
         g.noalias() += (w * r) * J;
       } else {
         Eigen::Matrix<double, 3, 6> J;
         J.leftCols<3>().setIdentity();
-        J.rightCols<3>() = -Skew(p);
+        J.rightCols<3>() = -Skew(p - center);
         const double w = KernelWeight(kernel, scale_sq, diff.squaredNorm());
         H.noalias() += w * J.transpose() * J;
         g.noalias() += w * J.transpose() * diff;
@@ -204,7 +208,11 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     const double damping = 1e-9 * H.diagonal().maxCoeff() + 1e-12;
     const Vector6d delta = -(H + damping * Matrix6d::Identity()).ldlt().solve(g);
     if (!delta.allFinite()) return Status::Error("icp: non-finite Gauss-Newton update");
-    pose = se3::Exp(delta) * pose;
+    // p' = center + exp(w) (p - center) + dt: the rotation turns about the source origin and
+    // leaves it where it is, the translation moves it.
+    const Pose3 step = se3::Exp(delta);
+    pose.linear() = step.linear() * pose.linear();
+    pose.translation() += step.translation();
     if (delta.head<3>().norm() < config_.convergence_translation_m &&
         delta.tail<3>().norm() < config_.convergence_rotation_rad) {
       // Converged on fresh pairs, or on pairs searched so close to the solution (a tenth of

@@ -39,6 +39,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},
       {"odometry", "kernel_sigma_factor", &s.odometry.kernel_sigma_factor},
       {"odometry", "icp_max_iterations", &s.odometry.icp.max_iterations},
+      {"odometry", "icp_convergence_translation_m", &s.odometry.icp.convergence_translation_m},
+      {"odometry", "icp_convergence_rotation_rad", &s.odometry.icp.convergence_rotation_rad},
       {"odometry", "icp_reassociate_translation_m", &s.odometry.icp.reassociate_translation_m},
       {"odometry", "icp_reassociate_rotation_rad", &s.odometry.icp.reassociate_rotation_rad},
       {"odometry", "local_map_voxel_size_m", &s.odometry.local_map.voxel_size_m},

@@ -18,8 +18,17 @@
 // single sparse scan as target every method is biased by a few tenths of a degree (ring
 // structure); against a merged local map the synthetic test recovers 2 cm / 0.1 deg.
 //
-// Update: T <- Exp(delta) * T (left perturbation, se3::Exp decoupled form), residual Jacobian
-// [n^T, (p x n)^T] for point-to-plane and [I, -[p]x] for point-to-point, p = T * source point.
+// Update: delta = (dt, w) in target axes about the source origin c = T.translation(): the
+// rotation exp(w) turns about c, then c moves by dt (R <- exp(w) R, t <- t + dt). Residual
+// Jacobian [n^T, ((p - c) x n)^T] for point-to-plane and [I, -[p - c]x] for point-to-point,
+// p = T * source point. About c and not about the target origin: 300 m from the target
+// origin a rotation about it is mostly a translation, the two are strongly coupled and the
+// convergence thresholds lose their meaning (campus s02 seed 1, first 2200 scans: 27 % of the
+// scan registrations ran into max_iterations, with 2-5 cm translation steps that were
+// rotation steps of 1e-4 rad; 18 % after this change, the rest is correspondences that
+// switch between iterations). Odometry ATE from the first pose, campus s00 / s01 / s02:
+// 2.41 / 6.12 / 27.9 m before, 2.32 / 6.27 / 13.0 m after; small: 0.19 / 0.41 / 0.45 m before,
+// 0.14 / 0.39 / 0.44 m after.
 #pragma once
 
 #include <cstddef>
@@ -72,8 +81,9 @@ struct IcpResult {
   std::size_t num_inliers = 0;     ///< source points with a target point within max distance
   double fitness = 0.0;            ///< num_inliers / num_source, in [0, 1]
   double rmse_m = 0.0;             ///< RMS point-to-point distance of the inliers [m]
-  /// Gauss-Newton Hessian J^T W J at the solution (translation first, then rotation), in
-  /// units of 1/residual^2; scale by 1/sigma^2 of the point noise for an information matrix.
+  /// Gauss-Newton Hessian J^T W J at the solution (translation first, then rotation about
+  /// the source origin, see the update above), in units of 1/residual^2; scale by 1/sigma^2
+  /// of the point noise for an information matrix.
   Eigen::Matrix<double, 6, 6> hessian = Eigen::Matrix<double, 6, 6>::Zero();
 
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
