@@ -159,13 +159,22 @@ class PairDetection {
     }
   }
 
+  // Heights above the submap's own ground: the two sessions' grounds differ by the vertical
+  // alignment error and the odometry's height drift inside the submaps (0.1-0.3 m), and above
+  // the lower of the two a session's own ground rose out of ground_tolerance_m and was then
+  // seen through by the other session's grazing rays. Where the own ground is far above the
+  // joint one, the own view of the ground was blocked (under a parked car): the joint one.
   void EstimateGround() {
-    const GroundGrid ground(sides_[0], sides_[1], config_.ground_cell_m);
+    const GroundGrid joint(sides_[0], sides_[1], config_.ground_cell_m);
+    const float max_gap = static_cast<float>(config_.own_ground_max_gap_m);
     for (int s = 0; s < 2; ++s) {
       Side& side = sides_[s];
+      const GroundGrid own(side, side, config_.ground_cell_m);
       side.height_m.resize(side.points.size());
       for (std::size_t i = 0; i < side.points.size(); ++i) {
-        side.height_m[i] = ground.HeightAbove(side.points[i]);
+        const float above_joint = joint.HeightAbove(side.points[i]);
+        const float above_own = own.HeightAbove(side.points[i]);
+        side.height_m[i] = above_joint - above_own <= max_gap ? above_own : above_joint;
       }
     }
   }
@@ -456,6 +465,9 @@ Status DynamicDetectionConfig::Validate() const {
   if (!std::isfinite(grow_max_normal_angle_rad) || grow_max_normal_angle_rad < 0.0 ||
       grow_max_normal_angle_rad > M_PI / 2) {
     return Status::Error("dynamic_detection.grow_max_normal_angle_rad must be in [0, pi/2]");
+  }
+  if (!std::isfinite(own_ground_max_gap_m) || own_ground_max_gap_m < 0.0) {
+    return Status::Error("dynamic_detection.own_ground_max_gap_m must be >= 0");
   }
   if (!std::isfinite(ground_tolerance_m) || ground_tolerance_m < 0.0) {
     return Status::Error("dynamic_detection.ground_tolerance_m must be >= 0");

@@ -63,7 +63,8 @@ const char kUsage[] =
     "  --set KEY=VALUE    override a detector parameter (seed_distance_m, support_radius_m,\n"
     "                     min_passing_rays, max_support_points, min_cluster_points,\n"
     "                     min_cluster_coarse_points, max_range_m, end_margin_m, rays_per_point,\n"
-    "                     origin_spacing_m, dynamic_grow_radius_m, mending_distance_m)\n";
+    "                     origin_spacing_m, dynamic_grow_radius_m, mending_distance_m,\n"
+    "                     ground_tolerance_m, ground_cell_m, own_ground_max_gap_m)\n";
 
 constexpr int kCanopy = 6;
 constexpr int kMovingCar = 9;
@@ -399,6 +400,9 @@ int main(int argc, char** argv) {
       else if (key == "origin_spacing_m") config.origin_spacing_m = v;
       else if (key == "dynamic_grow_radius_m") config.dynamic_grow_radius_m = v;
       else if (key == "mending_distance_m") config.mending_distance_m = v;
+      else if (key == "ground_tolerance_m") config.ground_tolerance_m = v;
+      else if (key == "ground_cell_m") config.ground_cell_m = v;
+      else if (key == "own_ground_max_gap_m") config.own_ground_max_gap_m = v;
       else {
         std::fprintf(stderr, "dynamic_detection_benchmark: unknown --set key %s\n", key.c_str());
         return 2;
@@ -477,6 +481,7 @@ int main(int argc, char** argv) {
     long canopy = 0, canopy_kept = 0, low = 0, low_removed = 0, high = 0, high_removed = 0;
     long low_unobserved = 0, unlabelled = 0, low_replaced = 0, low_replaced_removed = 0;
     std::map<std::uint32_t, std::pair<long, long>> vacated_objects;
+    long static_removed_by_class[sim::kNumObjectClasses] = {};
     for (int s = 0; s < 2; ++s) {
       const SessionData& d = s == 0 ? H : C;
       for (std::size_t m = 0; m < d.submaps.size(); ++m) {
@@ -508,6 +513,7 @@ int main(int argc, char** argv) {
           } else {
             ++static_all;
             static_kept += !removed;
+            if (removed && label < sim::kNumObjectClasses) ++static_removed_by_class[label];
             if (f & 8) {
               ++static_near;
               static_near_kept += !removed;
@@ -539,6 +545,14 @@ int main(int argc, char** argv) {
                 "(%ld/%ld)\n",
                 pct(static_kept, static_all), static_kept, static_all,
                 pct(static_near_kept, static_near), static_near_kept, static_near);
+    std::printf("    static points removed by class:");
+    for (int k = 0; k < sim::kNumObjectClasses; ++k) {
+      if (static_removed_by_class[k] > 0) {
+        std::printf(" %s %ld", sim::ObjectClassName(static_cast<sim::ObjectClass>(k)),
+                    static_removed_by_class[k]);
+      }
+    }
+    std::printf("\n");
     std::printf("  canopy SA %.3f %% (%ld/%ld kept)\n", pct(canopy_kept, canopy), canopy_kept,
                 canopy);
     std::printf("  high-dynamic leftovers in the submaps: %ld, removed %ld; unlabelled %ld\n",

@@ -31,10 +31,11 @@
 //    detection must be a cluster of at least `min_cluster_points` points with at least
 //    `min_cluster_coarse_points` coarse points. So canopies stay static with the height guard
 //    off; the guard is kept as an extra safety for tall structures.
-//  - Local ground: the lowest point per `ground_cell_m` cell of both submaps, minimum over the
-//    3x3 cell neighbourhood. Points within `ground_tolerance_m` of it are ground: never dynamic
-//    (the ground under a removed car is seen by both sessions' rays at grazing angles) and no
-//    support.
+//  - Local ground: the lowest point per `ground_cell_m` cell, minimum over the 3x3 cell
+//    neighbourhood, of each submap for its own points (of both submaps where its own is more
+//    than `own_ground_max_gap_m` higher: its view of the ground was blocked). Points within
+//    `ground_tolerance_m` of it are ground: never dynamic (the ground under a removed car is
+//    seen by both sessions' rays at grazing angles) and no support.
 #pragma once
 
 #include <cstdint>
@@ -84,9 +85,17 @@ struct DynamicDetectionConfig {
   double dynamic_grow_radius_m = 0.45;
   int min_cluster_points = 10;
   int min_cluster_coarse_points = 3;
-  /// Local ground: cell edge [m]; points this close above the ground are ground [m].
-  double ground_cell_m = 1.0;
+  /// Local ground: cell edge [m]; points this close above the ground are ground [m]. Each
+  /// submap's points are measured against its own ground, unless that is more than
+  /// own_ground_max_gap_m above the ground of both submaps together [m]. Measured with
+  /// `dynamic_detection_benchmark` (small seed 1, submaps at their true poses; pairs s00-s01 /
+  /// s00-s02 / s01-s02): with the joint ground and 1 m cells, 16.7 / 20.9 / 20.3 thousand
+  /// ground points were removed as dynamic (static SA 97.7 / 97.9 / 97.1 %); with the own
+  /// ground and 0.5 m cells 3.9 / 2.6 / 3.5 thousand (SA 99.2 / 99.5 / 99.1 %), low-dynamic DA
+  /// 42.9 -> 42.2, 54.5 -> 52.2, 50.3 -> 47.5 %.
+  double ground_cell_m = 0.5;
   double ground_tolerance_m = 0.25;
+  double own_ground_max_gap_m = 1.0;
   /// Height guard: points higher than this above the local ground are never dynamic [m].
   bool height_guard_enabled = true;
   double height_guard_m = 2.0;
