@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <initializer_list>
 #include <limits>
 #include <memory>
 #include <string>
@@ -61,13 +62,13 @@ PointVector ThinOrigins(const Submap& submap, const Pose3& T, double spacing_m) 
   return kept;
 }
 
-// Lowest point per 2D cell of both submaps, then the minimum over the 3x3 neighbourhood.
+// Lowest point per 2D cell of the given submaps, then the minimum over the 3x3 neighbourhood.
 class GroundGrid {
  public:
-  GroundGrid(const Side& a, const Side& b, double cell_m) : cell_m_(cell_m) {
+  GroundGrid(std::initializer_list<const Side*> sides, double cell_m) : cell_m_(cell_m) {
     Eigen::Vector2d lo(std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
     Eigen::Vector2d hi = -lo;
-    for (const Side* s : {&a, &b}) {
+    for (const Side* s : sides) {
       for (const Eigen::Vector3d& p : s->points) {
         lo = lo.cwiseMin(p.head<2>());
         hi = hi.cwiseMax(p.head<2>());
@@ -78,7 +79,7 @@ class GroundGrid {
     ny_ = static_cast<int>(std::floor((hi.y() - lo.y()) / cell_m)) + 1;
     std::vector<float> lowest(static_cast<std::size_t>(nx_) * ny_,
                               std::numeric_limits<float>::infinity());
-    for (const Side* s : {&a, &b}) {
+    for (const Side* s : sides) {
       for (const Eigen::Vector3d& p : s->points) {
         float& z = lowest[Cell(p)];
         z = std::min(z, static_cast<float>(p.z()));
@@ -165,11 +166,11 @@ class PairDetection {
   // seen through by the other session's grazing rays. Where the own ground is far above the
   // joint one, the own view of the ground was blocked (under a parked car): the joint one.
   void EstimateGround() {
-    const GroundGrid joint(sides_[0], sides_[1], config_.ground_cell_m);
+    const GroundGrid joint({&sides_[0], &sides_[1]}, config_.ground_cell_m);
     const float max_gap = static_cast<float>(config_.own_ground_max_gap_m);
     for (int s = 0; s < 2; ++s) {
       Side& side = sides_[s];
-      const GroundGrid own(side, side, config_.ground_cell_m);
+      const GroundGrid own({&side}, config_.ground_cell_m);
       side.height_m.resize(side.points.size());
       for (std::size_t i = 0; i < side.points.size(); ++i) {
         const float above_joint = joint.HeightAbove(side.points[i]);
