@@ -69,6 +69,10 @@ SimSession Simulate(const test::SyntheticScene& scene, const Poses& poses,
       submap.points.push_back(record.T_submap_sensor * p.position_m.cast<double>());
     }
   }
+  for (std::size_t i = 1; i < poses.size(); ++i) {  // a submap's length runs to the next one
+    session.submaps[(i - 1) / 10].length_m +=
+        (poses[i].translation() - poses[i - 1].translation()).norm();
+  }
   for (Submap& s : session.submaps) s.points = VoxelDownsample(s.points, 0.2);
   return session;
 }
@@ -245,6 +249,69 @@ TEST_F(InterSessionMatcherTest, TooFewAgreeingLoopsAlignNothing) {
   EXPECT_GE(too_few, 3);
 }
 
+// The new session's odometry drifted between its submaps 0 and 2 (40 m apart): submap 0's
+// origin in the session frame is off by `drift`, so its loops imply another map <- session
+// transform than those of submaps 2 and 3 (the main group: 4 loops against 2).
+InterSessionMatchResult MatchWithDrift(const InterSessionMatcherConfig& config,
+                                       const Eigen::Vector3d& drift_m,
+                                       const MapContents& history, SessionResult current,
+                                       const PlaceRecognizer& recognizer) {
+  current.submaps[0].T_map_submap.translation() += drift_m;
+  return InterSessionMatcher::Create(config).value().Match(history, current, recognizer).value();
+}
+
+std::set<std::uint32_t> AcceptedSubmaps(const InterSessionMatchResult& r) {
+  std::set<std::uint32_t> accepted;
+  for (const InterSessionLoop& loop : r.loops) accepted.insert(loop.current_submap);
+  return accepted;
+}
+
+TEST_F(InterSessionMatcherTest, AGroupApartByOdometryDriftIsAcceptedToo) {
+  // 1.5 m: beyond the main group's bounds (0.5 m + 1 % of 40 m) but within the drift allowed
+  // over 40 m of driving (+ 5 %). Submap 0 alone is a one-submap group, so this needs
+  // min_secondary_submaps = 1; the default of 2 keeps it out.
+  InterSessionMatcherConfig config;
+  config.consistency.min_secondary_submaps = 1;
+  const Eigen::Vector3d drift(0.0, 1.5, 0.0);
+  const InterSessionMatchResult r =
+      MatchWithDrift(config, drift, data_->history, data_->current, *data_->recognizer);
+  ASSERT_TRUE(r.aligned);
+  EXPECT_EQ(AcceptedSubmaps(r), (std::set<std::uint32_t>{0, 2, 3}));
+  ExpectEveryAcceptedLoopTrue(r);
+  // T_map_session comes from the main group (the submaps the drift did not move).
+  const Pose3 error = se3::Between(TrueMapSession(), r.T_map_session);
+  EXPECT_LT(se3::TranslationNorm(error), 0.1);
+
+  // Main group only: submap 0's loops are rejected as inconsistent.
+  config.consistency.min_secondary_submaps = 0;
+  const InterSessionMatchResult main_only =
+      MatchWithDrift(config, drift, data_->history, data_->current, *data_->recognizer);
+  EXPECT_EQ(AcceptedSubmaps(main_only), (std::set<std::uint32_t>{2, 3}));
+  // Default: a further group needs loops from two submaps.
+  const InterSessionMatchResult by_default = MatchWithDrift(
+      InterSessionMatcherConfig(), drift, data_->history, data_->current, *data_->recognizer);
+  EXPECT_EQ(AcceptedSubmaps(by_default), (std::set<std::uint32_t>{2, 3}));
+  for (const LoopRecord& rec : by_default.records) {
+    if (rec.current_submap == 0 && rec.has_pose) {
+      EXPECT_EQ(rec.status, LoopStatus::kRejected);
+      EXPECT_NE(rec.reason.find("inconsistent"), std::string::npos) << rec.reason;
+    }
+  }
+}
+
+TEST_F(InterSessionMatcherTest, AGroupBeyondTheDriftBoundIsRejected) {
+  // 6 m after 40 m of driving is more than the drift bound (0.9 m + 5 % of 40 m): an aliased
+  // place, not drift.
+  InterSessionMatcherConfig config;
+  config.consistency.min_secondary_submaps = 1;
+  const InterSessionMatchResult r = MatchWithDrift(config, Eigen::Vector3d(0.0, 6.0, 0.0),
+                                                   data_->history, data_->current,
+                                                   *data_->recognizer);
+  ASSERT_TRUE(r.aligned);
+  EXPECT_EQ(AcceptedSubmaps(r), (std::set<std::uint32_t>{2, 3}));
+  ExpectEveryAcceptedLoopTrue(r);
+}
+
 TEST_F(InterSessionMatcherTest, FusedHistorySubmapsAreSkipped) {
   MapContents history = data_->history;
   history.submaps[1].state = SubmapState::kFused;
@@ -272,6 +339,12 @@ TEST(InterSessionMatcherConfigTest, ValidatesFields) {
   EXPECT_FALSE(c.Validate().ok());
   c = InterSessionMatcherConfig();
   c.consistency.max_rotation_rad = -1.0;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.consistency.min_secondary_submaps = -1;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.consistency.secondary_rotation_per_m = -0.1;
   EXPECT_FALSE(c.Validate().ok());
   c = InterSessionMatcherConfig();
   c.registration.ransac_iterations = 0;

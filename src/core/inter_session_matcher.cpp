@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <iterator>
+#include <limits>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -22,18 +23,58 @@ struct Registered {
   std::size_t record = 0;      // index into the result's records
   Pose3 T_map_session;         // implied by this loop
   Eigen::Vector3d origin;      // current submap origin, session frame
+  double path_m = 0.0;         // distance driven in the session up to the current submap
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
-bool Agree(const Registered& a, const Registered& b, const SequenceConsistencyConfig& config) {
-  const double separation_m = (a.origin - b.origin).norm();
-  const double max_t = config.max_translation_m + config.max_translation_per_m * separation_m;
-  const double max_r = config.max_rotation_rad + config.max_rotation_per_m * separation_m;
-  // Where each loop puts the other's current submap origin in the map.
+// Whether the two loops imply the same map <- session transform within `max_t` [m] (where each
+// puts both current submap origins) and `max_r` [rad].
+bool AgreeWithin(const Registered& a, const Registered& b, double max_t, double max_r) {
   for (const Eigen::Vector3d& x : {a.origin, b.origin}) {
     if ((a.T_map_session * x - b.T_map_session * x).norm() > max_t) return false;
   }
   return se3::RotationAngleRad(se3::Between(a.T_map_session, b.T_map_session)) <= max_r;
+}
+
+bool Agree(const Registered& a, const Registered& b, const SequenceConsistencyConfig& config) {
+  const double separation_m = (a.origin - b.origin).norm();
+  return AgreeWithin(a, b, config.max_translation_m + config.max_translation_per_m * separation_m,
+                     config.max_rotation_rad + config.max_rotation_per_m * separation_m);
+}
+
+// Drift-tolerant agreement of a loop outside the main group with one inside (see the config).
+bool AgreeUpToDrift(const Registered& a, const Registered& b,
+                    const SequenceConsistencyConfig& config) {
+  const double separation_m = (a.origin - b.origin).norm();
+  const double path_m = std::max(std::abs(a.path_m - b.path_m), separation_m);
+  return AgreeWithin(a, b,
+                     config.max_translation_m + config.max_translation_per_m * separation_m +
+                         config.secondary_translation_per_m * path_m,
+                     config.max_rotation_rad + config.max_rotation_per_m * separation_m +
+                         config.secondary_rotation_per_m * path_m);
+}
+
+// Single-linkage groups (connected components of Agree) of the loops `members` of `all`.
+std::vector<std::vector<std::size_t>> LinkedGroups(
+    const std::vector<Registered, Eigen::aligned_allocator<Registered>>& all,
+    const std::vector<std::size_t>& members, const SequenceConsistencyConfig& config) {
+  std::vector<std::vector<std::size_t>> groups;
+  std::vector<bool> assigned(members.size(), false);
+  for (std::size_t seed = 0; seed < members.size(); ++seed) {
+    if (assigned[seed]) continue;
+    assigned[seed] = true;
+    std::vector<std::size_t> group{members[seed]};
+    for (std::size_t next = 0; next < group.size(); ++next) {  // breadth-first
+      for (std::size_t k = 0; k < members.size(); ++k) {
+        if (!assigned[k] && Agree(all[group[next]], all[members[k]], config)) {
+          assigned[k] = true;
+          group.push_back(members[k]);
+        }
+      }
+    }
+    groups.push_back(std::move(group));
+  }
+  return groups;
 }
 
 double ProportionOf(const SubmapVoteResult& vote, const HistorySubmapId& id) {
@@ -53,6 +94,13 @@ Status SequenceConsistencyConfig::Validate() const {
     return Status::Error("sequence_consistency per-metre bounds must be >= 0");
   }
   if (min_group_size < 1) return Status::Error("sequence_consistency.min_group_size must be >= 1");
+  if (min_secondary_submaps < 0) {
+    return Status::Error("sequence_consistency.min_secondary_submaps must be >= 0");
+  }
+  if (!(secondary_translation_per_m >= 0.0) || !(secondary_rotation_per_m >= 0.0) ||
+      !std::isfinite(secondary_translation_per_m) || !std::isfinite(secondary_rotation_per_m)) {
+    return Status::Error("sequence_consistency secondary per-metre bounds must be >= 0");
+  }
   return Status::Ok();
 }
 
@@ -179,6 +227,10 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
   // of a submap is charged to the first pair that needed it.
   std::vector<Registered, Eigen::aligned_allocator<Registered>> registered;
   std::set<std::pair<bool, std::size_t>> charged;
+  std::vector<double> path_m(current.submaps.size(), 0.0);  // driven before each submap
+  for (std::size_t c = 1; c < current.submaps.size(); ++c) {
+    path_m[c] = path_m[c - 1] + current.submaps[c - 1].length_m;
+  }
   for (const Job& job : jobs) {
     LoopRecord& record = result.records[job.record];
     const Submap& cur = current.submaps[job.current];
@@ -213,6 +265,7 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
     r.record = job.record;
     r.T_map_session = hist.T_map_submap * reg.T_target_source * cur.T_map_submap.inverse();
     r.origin = cur.T_map_submap.translation();
+    r.path_m = path_m[job.current];
     registered.push_back(r);
     record.status = LoopStatus::kCandidate;  // decided below
   }
@@ -241,21 +294,60 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
   if (enough) {
     for (std::size_t j : best_group) in_group[j] = true;
   }
+  // Further groups that agree with the main one up to the drift between them.
+  std::vector<std::size_t> outside;
+  for (std::size_t j = 0; j < registered.size(); ++j) {
+    if (!in_group[j]) outside.push_back(j);
+  }
+  const std::vector<std::size_t> main_group = enough ? best_group : std::vector<std::size_t>{};
+  std::size_t secondary_loops = 0;
+  if (!main_group.empty() && consistency.min_secondary_submaps > 0) {
+    for (const std::vector<std::size_t>& group : LinkedGroups(registered, outside, consistency)) {
+      std::set<std::uint32_t> submaps;
+      for (std::size_t j : group) submaps.insert(registered[j].loop.current_submap);
+      if (static_cast<int>(group.size()) < consistency.min_group_size ||
+          static_cast<int>(submaps.size()) < consistency.min_secondary_submaps) {
+        continue;
+      }
+      // Compared with the main group's loop nearest along the session (least drift between).
+      std::size_t g_best = group.front(), m_best = main_group.front();
+      double nearest_m = std::numeric_limits<double>::infinity();
+      for (std::size_t g : group) {
+        for (std::size_t m : main_group) {
+          const double d = std::abs(registered[g].path_m - registered[m].path_m);
+          if (d < nearest_m) {
+            nearest_m = d;
+            g_best = g;
+            m_best = m;
+          }
+        }
+      }
+      if (!AgreeUpToDrift(registered[g_best], registered[m_best], consistency)) continue;
+      for (std::size_t j : group) in_group[j] = true;
+      secondary_loops += group.size();
+    }
+  }
+  // T_map_session comes from the main group's loop with the largest overlap.
   std::size_t anchor = registered.size();
+  for (std::size_t j : main_group) {
+    if (anchor == registered.size() ||
+        registered[j].loop.overlap_ratio > registered[anchor].loop.overlap_ratio) {
+      anchor = j;
+    }
+  }
   for (std::size_t j = 0; j < registered.size(); ++j) {
     LoopRecord& record = result.records[registered[j].record];
     if (in_group[j]) {
       record.status = LoopStatus::kAccepted;
       result.loops.push_back(registered[j].loop);
-      if (anchor == registered.size() ||
-          registered[j].loop.overlap_ratio > registered[anchor].loop.overlap_ratio) {
-        anchor = j;
-      }
     } else {
       record.status = LoopStatus::kRejected;
       record.reason =
           enough ? "inconsistent with the " + std::to_string(best_group.size()) +
-                       " agreeing loops"
+                       " agreeing loops" +
+                       (secondary_loops > 0 ? " (and " + std::to_string(secondary_loops) +
+                                                  " in further groups)"
+                                            : std::string())
                  : "too few consistent loops (" + std::to_string(best_group.size()) + " < " +
                        std::to_string(consistency.min_group_size) + ")";
     }

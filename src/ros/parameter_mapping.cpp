@@ -68,6 +68,12 @@ namespace ros_params {
   F(inter_session_consistency_max_translation_m, g.matching.consistency.max_translation_m)    \
   F(inter_session_consistency_max_rotation_rad, g.matching.consistency.max_rotation_rad)      \
   F(inter_session_consistency_min_group_size, g.matching.consistency.min_group_size)          \
+  F(inter_session_consistency_min_secondary_submaps,                                          \
+    g.matching.consistency.min_secondary_submaps)                                             \
+  F(inter_session_consistency_secondary_translation_per_m,                                    \
+    g.matching.consistency.secondary_translation_per_m)                                       \
+  F(inter_session_consistency_secondary_rotation_per_m,                                       \
+    g.matching.consistency.secondary_rotation_per_m)                                          \
   F(inter_session_loop_sigma_translation_m, g.inter_sigma_translation_m)                      \
   F(inter_session_loop_sigma_rotation_rad, g.inter_sigma_rotation_rad)                        \
   F(registration_coarse_voxel_m, g.matching.registration.coarse_voxel_m)                      \

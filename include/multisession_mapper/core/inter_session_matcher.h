@@ -7,7 +7,8 @@
 // intra-session stage); finally the accepted pairs must agree with each other and with the new
 // session's odometry (sequence consistency): every accepted loop implies a transform
 // map <- session, and only the largest group of loops that imply the same transform (within
-// bounds) is kept, so that a single aliased place cannot pull a session in.
+// bounds) pulls the session in, so that a single aliased place cannot; further groups are kept
+// when they agree with it up to the odometry drift between them (see the config).
 #pragma once
 
 #include <cstdint>
@@ -40,6 +41,20 @@ struct SequenceConsistencyConfig {
   /// largest group wins (ties: larger summed overlap). T_map_session is taken from the loop of
   /// the winning group with the largest overlap.
   int min_group_size = 2;
+  /// Further groups. A long session drifts more between two distant overlaps with the map than
+  /// the bounds above allow (campus s02: 3.8 deg and 16 m between overlaps 460 m of driving
+  /// apart), and its second overlap was rejected with the loops of the first. So the loops
+  /// outside the main group are grouped again, by single linkage under the bounds above (a
+  /// chain of overlapping submaps agrees link by link), and a group is accepted as well when
+  /// it has at least `min_group_size` loops from at least `min_secondary_submaps` current
+  /// submaps (one aliased submap often matches two neighbouring history submaps alike) and
+  /// agrees with the main group within the drift of the distance driven between them:
+  /// `secondary_translation_per_m` [m/m] and `secondary_rotation_per_m` [rad/m] of that path
+  /// on top of the bounds above. The joint pose graph then bends the session's odometry between
+  /// the groups (it still rejects a loop that does not fit). 0 secondary submaps: main only.
+  int min_secondary_submaps = 2;
+  double secondary_translation_per_m = 0.05;
+  double secondary_rotation_per_m = 0.0005;
 
   Status Validate() const;
 };
