@@ -1,3 +1,5 @@
+#include <map>
+
 #include <gtest/gtest.h>
 
 #include "multisession_mapper/core/submap_voting.h"
@@ -28,7 +30,7 @@ TEST(SubmapVotingTest, ConfigValidation) {
   SubmapVotingConfig config;
   EXPECT_TRUE(config.Validate().ok());
   EXPECT_DOUBLE_EQ(config.gamma, 0.95);
-  EXPECT_EQ(config.top_n, 3);
+  EXPECT_EQ(config.top_n, 5);
   config.gamma = 1.0;
   EXPECT_NE(config.Validate().message().find("gamma"), std::string::npos);
   config = SubmapVotingConfig();
@@ -84,6 +86,34 @@ TEST(SubmapVotingTest, SmallestSufficientGroupIsUsed) {
   const SubmapVoteResult r = MakeVoting().Vote(scans, SubmapVoting::ConsecutiveIds());
   EXPECT_EQ(r.outcome, Outcome::kNeighbours);
   ASSERT_EQ(r.candidates.size(), 2u);
+}
+
+TEST(SubmapVotingTest, AFarTailVoteTiedWithANeighbourDoesNotVetoTheGroup) {
+  // campus s01 submap 19: 31 and 28 votes for two passes over one place, 3 for a neighbour and
+  // 3 for a place 200 m away. The top 3 by votes (the far one wins the tie) are not neighbours;
+  // the top submap's neighbour group holds 62 of 65 votes.
+  std::map<HistorySubmapId, Eigen::Vector3d> origins;
+  origins[H(1)] = Eigen::Vector3d(0, 0, 0);
+  origins[H(2)] = Eigen::Vector3d(20, 0, 0);
+  origins[H(9)] = Eigen::Vector3d(200, 0, 0);
+  origins[H(12)] = Eigen::Vector3d(35, 0, 0);
+  std::vector<ScanVote> scans;
+  AddVotes(&scans, H(1), 31);
+  AddVotes(&scans, H(2), 28);
+  AddVotes(&scans, H(9), 3);
+  AddVotes(&scans, H(12), 3);
+  const SubmapVoteResult r = MakeVoting().Vote(scans, SubmapVoting::OriginsWithin(origins, 30.0));
+  ASSERT_EQ(r.proportions[2].history, H(9)) << "the far submap ranks third";
+  EXPECT_EQ(r.outcome, Outcome::kNeighbours) << r.reason;
+  EXPECT_EQ(r.candidates, (std::vector<HistorySubmapId>{H(1), H(2), H(12)}));
+  // Without the neighbour: 59 of 65 = 0.91 in the group, undefined, and the reason says that
+  // the concentrated votes were not on neighbours.
+  scans.resize(scans.size() - 3);
+  AddVotes(&scans, H(9), 3);
+  const SubmapVoteResult spread =
+      MakeVoting().Vote(scans, SubmapVoting::OriginsWithin(origins, 30.0));
+  EXPECT_EQ(spread.outcome, Outcome::kUndefined);
+  EXPECT_NE(spread.reason.find("not neighbours"), std::string::npos) << spread.reason;
 }
 
 TEST(SubmapVotingTest, NonNeighboursAreRejected) {
@@ -145,10 +175,21 @@ TEST(SubmapVotingTest, SpreadVotesAreUndefined) {
   AddVotes(&scans, H(5), 30);
   AddVotes(&scans, H(6), 20);  // top 3 sum 0.9 <= gamma
   AddVotes(&scans, H(7), 10);
-  const SubmapVoteResult r = MakeVoting().Vote(scans, SubmapVoting::ConsecutiveIds());
+  SubmapVotingConfig n3;
+  n3.top_n = 3;  // the paper's n
+  const SubmapVoteResult r = MakeVoting(n3).Vote(scans, SubmapVoting::ConsecutiveIds());
   EXPECT_EQ(r.outcome, Outcome::kUndefined);
   EXPECT_EQ(r.proportions.size(), 4u);
   EXPECT_DOUBLE_EQ(r.proportions[0].proportion, 0.4);
+  // The default n = 5 takes the fourth neighbour in (two passes over a place, two submaps each).
+  const SubmapVoteResult r5 = MakeVoting().Vote(scans, SubmapVoting::ConsecutiveIds());
+  EXPECT_EQ(r5.outcome, Outcome::kNeighbours);
+  EXPECT_EQ(r5.candidates.size(), 4u);
+  // Spread over more than five neighbours it stays undefined.
+  scans.clear();
+  for (int id = 0; id < 10; ++id) AddVotes(&scans, H(id), 10);
+  EXPECT_EQ(MakeVoting().Vote(scans, SubmapVoting::ConsecutiveIds()).outcome,
+            Outcome::kUndefined);
 }
 
 TEST(SubmapVotingTest, NoMatchScansAreLeftOutOfTheVote) {

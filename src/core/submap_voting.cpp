@@ -104,31 +104,55 @@ SubmapVoteResult SubmapVoting::Vote(const std::vector<ScanVote>& scans,
     result.reason = reason.str();
     return result;
   }
-  const int max_group =
-      std::min<int>(config_.top_n, static_cast<int>(result.proportions.size()));
+  // Step 3: the top submap's neighbour group (the voted submaps connected to it), in vote
+  // order, up to top_n of them.
+  std::vector<const VoteProportion*> group = {&top};
+  if (are_neighbours) {
+    std::vector<bool> in_group(result.proportions.size(), false);
+    in_group[0] = true;
+    for (bool grown = true; grown;) {  // connected through voted submaps, any path
+      grown = false;
+      for (std::size_t i = 1; i < result.proportions.size(); ++i) {
+        if (in_group[i]) continue;
+        for (std::size_t j = 0; j < result.proportions.size(); ++j) {
+          if (in_group[j] &&
+              are_neighbours(result.proportions[i].history, result.proportions[j].history)) {
+            in_group[i] = grown = true;
+            break;
+          }
+        }
+      }
+    }
+    for (std::size_t i = 1; i < result.proportions.size(); ++i) {
+      if (in_group[i]) group.push_back(&result.proportions[i]);
+    }
+  }
+  const int max_group = std::min<int>(config_.top_n, static_cast<int>(group.size()));
   double sum = top.proportion;
   for (int m = 2; m <= max_group; ++m) {
-    sum += result.proportions[static_cast<std::size_t>(m - 1)].proportion;
+    sum += group[static_cast<std::size_t>(m - 1)]->proportion;
     if (sum <= config_.gamma) continue;
-    std::vector<HistorySubmapId> group;
-    for (int i = 0; i < m; ++i) {
-      group.push_back(result.proportions[static_cast<std::size_t>(i)].history);
-    }
+    std::vector<HistorySubmapId> candidates;
+    for (int i = 0; i < m; ++i) candidates.push_back(group[static_cast<std::size_t>(i)]->history);
+    // The first m of the group need not be connected among themselves (a chain through a
+    // submap with fewer votes); then a larger m may be.
+    if (!Connected(candidates, are_neighbours)) continue;
     std::ostringstream reason;
-    reason << "top " << m << " sum " << sum << " > gamma";
-    if (are_neighbours && Connected(group, are_neighbours)) {
-      result.outcome = SubmapVoteResult::Outcome::kNeighbours;
-      result.candidates = group;
-      reason << ", neighbours";
-    } else {
-      reason << " but not neighbours";
-    }
+    reason << "neighbours of " << Describe(top.history) << ": top " << m << " sum " << sum
+           << " > gamma";
+    result.outcome = SubmapVoteResult::Outcome::kNeighbours;
+    result.candidates = std::move(candidates);
     result.reason = reason.str();
     return result;
   }
+  // Undefined. Say whether the votes were concentrated but on places that are not neighbours.
+  double top_sum = 0.0;
+  const int top_m = std::min<int>(config_.top_n, static_cast<int>(result.proportions.size()));
+  for (int i = 0; i < top_m; ++i) top_sum += result.proportions[static_cast<std::size_t>(i)].proportion;
   std::ostringstream reason;
-  reason << "largest p = " << top.proportion << ", top " << max_group << " sum " << sum
-         << " <= gamma";
+  reason << "largest p = " << top.proportion << ", neighbour group of " << Describe(top.history)
+         << " (" << max_group << " of " << group.size() << ") sum " << sum << " <= gamma";
+  if (top_sum > config_.gamma) reason << "; top " << top_m << " sum " << top_sum << " but not neighbours";
   result.reason = reason.str();
   return result;
 }
