@@ -29,6 +29,31 @@ TEST(KdTreeTargetTest, NearestMatchesBruteForce) {
   }
 }
 
+TEST(KdTreeTargetTest, NearestWithinAgreesWithNearestInsideTheRadiusOnly) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  PointVector pts;
+  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
+  const KdTreeTarget target = KdTreeTarget::Create(pts).value();
+  int inside = 0;
+  for (int q = 0; q < 500; ++q) {
+    // Queries up to 15 m outside the cloud too: nothing within the radius there.
+    const Eigen::Vector3d query(1.5 * u(rng), 1.5 * u(rng), 1.5 * u(rng));
+    std::size_t nearest = 0, within = 0;
+    double d_nearest = 0.0, d_within = 0.0;
+    ASSERT_TRUE(target.Nearest(query, &nearest, &d_nearest));
+    const bool ok = target.NearestWithin(query, 1.5, &within, &d_within);
+    ASSERT_EQ(ok, d_nearest <= 1.5 * 1.5) << "query " << q;
+    if (ok) {
+      ++inside;
+      EXPECT_EQ(within, nearest);
+      EXPECT_DOUBLE_EQ(d_within, d_nearest);
+    }
+  }
+  EXPECT_GT(inside, 50);
+  EXPECT_LT(inside, 450);
+}
+
 TEST(KdTreeTargetTest, WallPointsGetWallNormals) {
   PointVector pts;
   for (double y = -5.0; y <= 5.0; y += 0.2) {

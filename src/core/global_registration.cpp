@@ -320,7 +320,6 @@ Hypotheses YawSearchHypotheses(const CoarseCloud& source, const CoarseCloud& tar
 // `structure_overlap_distance_m` of the target.
 double StructureOverlap(const CoarseCloud& source, const SubmapTarget& target, const Pose3& pose,
                         const GlobalRegistrationConfig& config) {
-  const double max_sq = config.structure_overlap_distance_m * config.structure_overlap_distance_m;
   std::size_t structure = 0, overlapping = 0;
   for (std::size_t i = 0; i < source.points.size(); ++i) {
     const Eigen::Vector3d& n = source.normals[i];
@@ -329,10 +328,8 @@ double StructureOverlap(const CoarseCloud& source, const SubmapTarget& target, c
     ++structure;
     std::size_t index;
     double distance_sq;
-    if (target.tree().Nearest(pose * source.points[i], &index, &distance_sq) &&
-        distance_sq <= max_sq) {
-      ++overlapping;
-    }
+    overlapping += target.tree().NearestWithin(
+        pose * source.points[i], config.structure_overlap_distance_m, &index, &distance_sq);
   }
   return structure == 0 ? 0.0 : static_cast<double>(overlapping) / structure;
 }

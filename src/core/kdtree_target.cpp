@@ -82,12 +82,22 @@ bool KdTreeTarget::Nearest(const Eigen::Vector3d& query, std::size_t* index,
   return impl_->tree->knnSearch(query.data(), 1, index, distance_sq) == 1;
 }
 
+bool KdTreeTarget::NearestWithin(const Eigen::Vector3d& query, double max_distance_m,
+                                 std::size_t* index, double* distance_sq) const {
+  if (empty()) return false;
+  BoundedNearest<std::size_t> result(max_distance_m * max_distance_m);
+  impl_->tree->findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, false));
+  if (!result.found()) return false;
+  *index = result.index();
+  *distance_sq = result.distance_sq();
+  return true;
+}
+
 bool KdTreeTarget::FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                              TargetMatch* match) const {
   std::size_t index = 0;
   double dist_sq = 0.0;
-  if (!Nearest(query, &index, &dist_sq)) return false;
-  if (dist_sq > max_distance_m * max_distance_m) return false;
+  if (!NearestWithin(query, max_distance_m, &index, &dist_sq)) return false;
   match->point = impl_->points[index];
   match->distance_sq = dist_sq;
   match->has_normal = impl_->planar[index];

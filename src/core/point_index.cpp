@@ -31,32 +31,6 @@ class IndexCollector {
   std::vector<std::uint32_t>* out_;
 };
 
-// Keeps the nearest index within an initial squared radius (prunes the search from the
-// start, unlike a k = 1 search that begins with an infinite radius).
-class BoundedNearest {
- public:
-  explicit BoundedNearest(double radius_sq) : best_sq_(radius_sq) {}
-  std::size_t size() const { return found_ ? 1 : 0; }
-  bool full() const { return true; }
-  double worstDist() const { return best_sq_; }
-  bool addPoint(double dist, std::uint32_t index) {
-    if (dist <= best_sq_) {
-      best_sq_ = dist;
-      index_ = index;
-      found_ = true;
-    }
-    return true;
-  }
-  bool found() const { return found_; }
-  std::uint32_t index() const { return index_; }
-  double distance_sq() const { return best_sq_; }
-
- private:
-  double best_sq_;
-  std::uint32_t index_ = 0;
-  bool found_ = false;
-};
-
 }  // namespace
 
 struct PointIndex::Impl {
@@ -98,7 +72,7 @@ bool PointIndex::Nearest(const Eigen::Vector3d& query, std::uint32_t* index,
 bool PointIndex::NearestWithin(const Eigen::Vector3d& query, double max_radius_m,
                                std::uint32_t* index, double* distance_sq) const {
   if (impl_->points.empty()) return false;
-  BoundedNearest result(max_radius_m * max_radius_m);
+  BoundedNearest<std::uint32_t> result(max_radius_m * max_radius_m);
   impl_->tree->findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, false));
   if (!result.found()) return false;
   *index = result.index();

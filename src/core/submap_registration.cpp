@@ -53,14 +53,12 @@ double SubmapRegistration::OverlapRatio(const PointVector& source_points,
                                         const SubmapTarget& target,
                                         const Pose3& T_target_source) const {
   if (source_points.empty()) return 0.0;
-  const double max_sq = config_.overlap_distance_m * config_.overlap_distance_m;
   std::size_t overlapping = 0;
   for (const Eigen::Vector3d& p : source_points) {
     std::size_t index;
     double distance_sq;
-    if (target.tree().Nearest(T_target_source * p, &index, &distance_sq) && distance_sq <= max_sq) {
-      ++overlapping;
-    }
+    overlapping += target.tree().NearestWithin(T_target_source * p, config_.overlap_distance_m,
+                                               &index, &distance_sq);
   }
   return static_cast<double>(overlapping) / source_points.size();
 }

@@ -45,6 +45,11 @@ class KdTreeTarget : public RegistrationTarget {
 
   /// Index of the nearest point and its squared distance [m^2]; false when empty.
   bool Nearest(const Eigen::Vector3d& query, std::size_t* index, double* distance_sq) const;
+  /// The same, limited to points within `max_distance_m`; false when there is none. Much
+  /// faster than Nearest() for queries far from every point (the search is pruned from the
+  /// start).
+  bool NearestWithin(const Eigen::Vector3d& query, double max_distance_m, std::size_t* index,
+                     double* distance_sq) const;
   const PointVector& points() const;
   /// Fraction of points with a planar normal (diagnostics).
   double PlanarFraction() const;

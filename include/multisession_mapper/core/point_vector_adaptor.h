@@ -22,6 +22,34 @@ struct PointVectorAdaptor {
   }
 };
 
+/// nanoflann result set: the nearest index within an initial squared radius. It prunes the search
+/// from the start, unlike a k = 1 search that begins with an infinite radius and descends into
+/// far branches for a query with no point nearby.
+template <typename IndexType>
+class BoundedNearest {
+ public:
+  explicit BoundedNearest(double radius_sq) : best_sq_(radius_sq) {}
+  std::size_t size() const { return found_ ? 1 : 0; }
+  bool full() const { return true; }
+  double worstDist() const { return best_sq_; }
+  bool addPoint(double dist, IndexType index) {
+    if (dist <= best_sq_) {
+      best_sq_ = dist;
+      index_ = index;
+      found_ = true;
+    }
+    return true;
+  }
+  bool found() const { return found_; }
+  IndexType index() const { return index_; }
+  double distance_sq() const { return best_sq_; }
+
+ private:
+  double best_sq_;
+  IndexType index_ = 0;
+  bool found_ = false;
+};
+
 /// A 3D L2 kd-tree over a PointVector; IndexType is the type of the returned point indices.
 template <typename IndexType>
 using PointVectorKdTree =
