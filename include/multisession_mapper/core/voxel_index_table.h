@@ -3,7 +3,8 @@
 // {key, index} slots, power-of-two capacity, at most half full. Replaces an
 // std::unordered_map<VoxelKey, uint32_t> there: no node allocation per voxel and one cache line
 // per probe (benchmark in the issue-5 note: submap building median and profile share).
-// Also the voxel index of VoxelHashMap, the odometry's local map.
+// Also the voxel index of VoxelHashMap, the odometry's local map, and the voxel occupancy of the
+// map update (every point of the map at each merge).
 #pragma once
 
 #include <cstddef>
