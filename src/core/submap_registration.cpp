@@ -8,6 +8,11 @@
 namespace multisession_mapper {
 namespace core {
 
+SubmapRegistrationConfig::SubmapRegistrationConfig() {
+  icp.reassociate_translation_m = 0.02;
+  icp.reassociate_rotation_rad = 0.002;
+}
+
 Status SubmapRegistrationConfig::Validate() const {
   if (!(source_voxel_m > 0.0) || !(target_voxel_m > 0.0)) {
     return Status::Error("submap_registration voxel sizes must be > 0");

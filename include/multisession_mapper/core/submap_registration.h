@@ -18,6 +18,8 @@ namespace multisession_mapper {
 namespace core {
 
 struct SubmapRegistrationConfig {
+  SubmapRegistrationConfig();
+
   /// Source points are downsampled to this voxel before ICP [m].
   double source_voxel_m = 0.5;
   /// Target points are downsampled to this voxel before building the kd-tree [m]; normals
@@ -25,6 +27,10 @@ struct SubmapRegistrationConfig {
   double target_voxel_m = 0.3;
   /// Coarse-to-fine correspondence distances [m]: ICP runs once per entry.
   std::vector<double> correspondence_schedule_m = {2.0, 1.0, 0.5};
+  /// Re-associates only after 2 cm / 0.002 rad of motion (set in the constructor): on a
+  /// campus s00 map, global_registration_benchmark (20 overlapping + 20 mirrored pairs, same
+  /// run) took 41 s instead of 51 s, median 0.96 instead of 1.08 s per pair, with the same
+  /// errors on every pair.
   IcpConfig icp;
   KdTreeTargetConfig target;
   /// A source point overlaps when a target point lies within this distance [m].
