@@ -10,11 +10,18 @@ namespace multisession_mapper {
 namespace core {
 namespace {
 
+// 3000 points uniform in a 40 m cube around the origin.
+PointVector RandomCloud(std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  PointVector pts;
+  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(*rng), u(*rng), u(*rng));
+  return pts;
+}
+
 TEST(KdTreeTargetTest, NearestMatchesBruteForce) {
   std::mt19937 rng(6);
   std::uniform_real_distribution<double> u(-20.0, 20.0);
-  PointVector pts;
-  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
+  const PointVector pts = RandomCloud(&rng);
   const KdTreeTarget target = KdTreeTarget::Create(pts).value();
   for (int q = 0; q < 500; ++q) {
     const Eigen::Vector3d query(u(rng), u(rng), u(rng));
@@ -32,9 +39,7 @@ TEST(KdTreeTargetTest, NearestMatchesBruteForce) {
 TEST(KdTreeTargetTest, NearestWithinAgreesWithNearestInsideTheRadiusOnly) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-20.0, 20.0);
-  PointVector pts;
-  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
-  const KdTreeTarget target = KdTreeTarget::Create(pts).value();
+  const KdTreeTarget target = KdTreeTarget::Create(RandomCloud(&rng)).value();
   int inside = 0;
   for (int q = 0; q < 500; ++q) {
     // Queries up to 15 m outside the cloud too: nothing within the radius there.
