@@ -39,14 +39,21 @@ TEST(KdTreeTargetTest, NearestMatchesBruteForce) {
 TEST(KdTreeTargetTest, NearestWithinAgreesWithNearestInsideTheRadiusOnly) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-20.0, 20.0);
-  const KdTreeTarget target = KdTreeTarget::Create(RandomCloud(&rng)).value();
+  const PointVector pts = RandomCloud(&rng);
+  const KdTreeTarget target = KdTreeTarget::Create(pts).value();
   int inside = 0;
   for (int q = 0; q < 500; ++q) {
     // Queries up to 15 m outside the cloud too: nothing within the radius there.
     const Eigen::Vector3d query(1.5 * u(rng), 1.5 * u(rng), 1.5 * u(rng));
     std::size_t nearest = 0, within = 0;
-    double d_nearest = 0.0, d_within = 0.0;
-    ASSERT_TRUE(target.Nearest(query, &nearest, &d_nearest));
+    double d_nearest = std::numeric_limits<double>::infinity(), d_within = 0.0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {  // brute force
+      const double d = (pts[i] - query).squaredNorm();
+      if (d < d_nearest) {
+        d_nearest = d;
+        nearest = i;
+      }
+    }
     const bool ok = target.NearestWithin(query, 1.5, &within, &d_within);
     ASSERT_EQ(ok, d_nearest <= 1.5 * 1.5) << "query " << q;
     if (ok) {

@@ -76,12 +76,6 @@ bool KdTreeTarget::empty() const { return impl_ == nullptr || impl_->points.empt
 
 const PointVector& KdTreeTarget::points() const { return impl_->points; }
 
-bool KdTreeTarget::Nearest(const Eigen::Vector3d& query, std::size_t* index,
-                           double* distance_sq) const {
-  if (empty()) return false;
-  return impl_->tree->knnSearch(query.data(), 1, index, distance_sq) == 1;
-}
-
 bool KdTreeTarget::NearestWithin(const Eigen::Vector3d& query, double max_distance_m,
                                  std::size_t* index, double* distance_sq) const {
   if (empty()) return false;

@@ -10,10 +10,10 @@ namespace multisession_mapper {
 namespace core {
 namespace {
 
-// True when the nodes form one connected component under `are_neighbours`.
-bool Connected(const std::vector<HistorySubmapId>& nodes,
-               const SubmapVoting::NeighbourRelation& are_neighbours) {
-  if (nodes.size() < 2) return true;
+// Which of the nodes are connected to the first one under `are_neighbours` (through any of
+// the nodes). `nodes` is not empty.
+std::vector<bool> ReachableFromFirst(const std::vector<HistorySubmapId>& nodes,
+                                     const SubmapVoting::NeighbourRelation& are_neighbours) {
   std::vector<bool> reached(nodes.size(), false);
   std::vector<std::size_t> stack = {0};
   reached[0] = true;
@@ -27,6 +27,14 @@ bool Connected(const std::vector<HistorySubmapId>& nodes,
       }
     }
   }
+  return reached;
+}
+
+// True when the nodes form one connected component under `are_neighbours`.
+bool Connected(const std::vector<HistorySubmapId>& nodes,
+               const SubmapVoting::NeighbourRelation& are_neighbours) {
+  if (nodes.size() < 2) return true;
+  const std::vector<bool> reached = ReachableFromFirst(nodes, are_neighbours);
   return std::all_of(reached.begin(), reached.end(), [](bool r) { return r; });
 }
 
@@ -108,21 +116,9 @@ SubmapVoteResult SubmapVoting::Vote(const std::vector<ScanVote>& scans,
   // order, up to top_n of them.
   std::vector<const VoteProportion*> group = {&top};
   if (are_neighbours) {
-    std::vector<bool> in_group(result.proportions.size(), false);
-    in_group[0] = true;
-    for (bool grown = true; grown;) {  // connected through voted submaps, any path
-      grown = false;
-      for (std::size_t i = 1; i < result.proportions.size(); ++i) {
-        if (in_group[i]) continue;
-        for (std::size_t j = 0; j < result.proportions.size(); ++j) {
-          if (in_group[j] &&
-              are_neighbours(result.proportions[i].history, result.proportions[j].history)) {
-            in_group[i] = grown = true;
-            break;
-          }
-        }
-      }
-    }
+    std::vector<HistorySubmapId> voted;
+    for (const VoteProportion& p : result.proportions) voted.push_back(p.history);
+    const std::vector<bool> in_group = ReachableFromFirst(voted, are_neighbours);
     for (std::size_t i = 1; i < result.proportions.size(); ++i) {
       if (in_group[i]) group.push_back(&result.proportions[i]);
     }

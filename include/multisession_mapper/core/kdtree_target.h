@@ -43,11 +43,10 @@ class KdTreeTarget : public RegistrationTarget {
                  TargetMatch* match) const override;
   bool empty() const override;
 
-  /// Index of the nearest point and its squared distance [m^2]; false when empty.
-  bool Nearest(const Eigen::Vector3d& query, std::size_t* index, double* distance_sq) const;
-  /// The same, limited to points within `max_distance_m`; false when there is none. Much
-  /// faster than Nearest() for queries far from every point (the search is pruned from the
-  /// start).
+  /// Index of the nearest point within `max_distance_m` and its squared distance [m^2];
+  /// false when there is none. The search is pruned by that radius from the start (a k = 1
+  /// search begins with an infinite radius and descends into far branches for a query with
+  /// no point nearby).
   bool NearestWithin(const Eigen::Vector3d& query, double max_distance_m, std::size_t* index,
                      double* distance_sq) const;
   const PointVector& points() const;
