@@ -184,7 +184,7 @@ TEST_F(InterSessionMatcherTest, FindsTheRevisitedSubmapsAndTheSessionOffset) {
               << rec.history_submap << " " << LoopStatusName(rec.status) << " vote "
               << rec.vote_proportion << " overlap " << rec.overlap_ratio << " " << rec.reason
               << std::endl;
-    EXPECT_EQ(rec.kind, LoopKind::kInter);
+    EXPECT_TRUE(rec.kind == LoopKind::kInter || rec.kind == LoopKind::kInterSequence);
     EXPECT_EQ(rec.current_session, "c1");
     EXPECT_NE(rec.status, LoopStatus::kCandidate) << "every candidate is decided";
     if (rec.status != LoopStatus::kAccepted) {
@@ -251,11 +251,14 @@ TEST_F(InterSessionMatcherTest, TooFewAgreeingLoopsAlignNothing) {
 
 // The new session's odometry drifted between its submaps 0 and 2 (40 m apart): submap 0's
 // origin in the session frame is off by `drift`, so its loops imply another map <- session
-// transform than those of submaps 2 and 3 (the main group: 4 loops against 2).
-InterSessionMatchResult MatchWithDrift(const InterSessionMatcherConfig& config,
+// transform than those of submaps 2 and 3 (the main group: 4 loops against 2). These tests
+// are about the consistency groups: sequence guidance (which also places submap 1, left
+// undefined by the votes) is off.
+InterSessionMatchResult MatchWithDrift(InterSessionMatcherConfig config,
                                        const Eigen::Vector3d& drift_m,
                                        const MapContents& history, SessionResult current,
                                        const PlaceRecognizer& recognizer) {
+  config.sequence.max_gap_submaps = 0;
   current.submaps[0].T_map_submap.translation() += drift_m;
   return InterSessionMatcher::Create(config).value().Match(history, current, recognizer).value();
 }
@@ -312,6 +315,67 @@ TEST_F(InterSessionMatcherTest, AGroupBeyondTheDriftBoundIsRejected) {
   ExpectEveryAcceptedLoopTrue(r);
 }
 
+// Submap 1 of the new session under an id the place recognizer has no answers for: the votes
+// leave it undefined, as they leave campus submaps whose scans have no history scan within
+// d_alpha. `shift_m` moves its origin in the session frame (an odometry error).
+InterSessionMatchResult MatchWithoutVotesForSubmap1(const InterSessionMatcherConfig& config,
+                                                    const Eigen::Vector3d& shift_m,
+                                                    const MapContents& history,
+                                                    SessionResult current,
+                                                    const PlaceRecognizer& recognizer) {
+  current.submaps[1].id = 99;
+  current.submaps[1].T_map_submap.translation() += shift_m;
+  return InterSessionMatcher::Create(config).value().Match(history, current, recognizer).value();
+}
+
+TEST_F(InterSessionMatcherTest, ASubmapWithoutVotesIsPlacedByItsNeighboursLoop) {
+  InterSessionMatcherConfig off;
+  off.sequence.max_gap_submaps = 0;
+  const InterSessionMatchResult without = MatchWithoutVotesForSubmap1(
+      off, Eigen::Vector3d::Zero(), data_->history, data_->current, *data_->recognizer);
+  EXPECT_EQ(AcceptedSubmaps(without).count(99), 0u);
+  for (const LoopRecord& rec : without.records) EXPECT_EQ(rec.kind, LoopKind::kInter);
+
+  const InterSessionMatchResult with =
+      MatchWithoutVotesForSubmap1(InterSessionMatcherConfig(), Eigen::Vector3d::Zero(),
+                                  data_->history, data_->current, *data_->recognizer);
+  ASSERT_TRUE(with.aligned);
+  EXPECT_EQ(AcceptedSubmaps(with).count(99), 1u);
+  EXPECT_EQ(AcceptedSubmaps(with).count(4), 0u) << "the unvisited place stays undefined";
+  int sequence_accepted = 0;
+  for (const LoopRecord& rec : with.records) {
+    if (rec.kind != LoopKind::kInterSequence) continue;
+    EXPECT_EQ(rec.current_submap, 99u) << "only the submap without votes is placed";
+    EXPECT_NE(rec.status, LoopStatus::kCandidate);
+    sequence_accepted += rec.status == LoopStatus::kAccepted;
+  }
+  EXPECT_GE(sequence_accepted, 1);
+  for (const InterSessionLoop& loop : with.loops) {
+    const std::uint32_t truth_id = loop.current_submap == 99 ? 1 : loop.current_submap;
+    const Pose3 error =
+        se3::Between(TrueRelative(loop.history_index, truth_id), loop.T_history_current);
+    EXPECT_LT(se3::TranslationNorm(error), 0.1) << "loop " << loop.current_submap;
+    EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg) << "loop " << loop.current_submap;
+  }
+}
+
+TEST_F(InterSessionMatcherTest, ASequenceLoopThatDisagreesWithItsNeighbourIsRejected) {
+  // The odometry puts submap 1 3 m from where it is: registration finds the true place, which
+  // disagrees with the neighbour's loop by more than the bounds (0.5 m + 1 % of 20 m).
+  const InterSessionMatchResult r =
+      MatchWithoutVotesForSubmap1(InterSessionMatcherConfig(), Eigen::Vector3d(0.0, 3.0, 0.0),
+                                  data_->history, data_->current, *data_->recognizer);
+  ASSERT_TRUE(r.aligned);
+  EXPECT_EQ(AcceptedSubmaps(r).count(99), 0u);
+  int disagreeing = 0;
+  for (const LoopRecord& rec : r.records) {
+    if (rec.kind != LoopKind::kInterSequence) continue;
+    EXPECT_EQ(rec.status, LoopStatus::kRejected);
+    disagreeing += rec.reason.find("disagrees") != std::string::npos;
+  }
+  EXPECT_GE(disagreeing, 1);
+}
+
 TEST_F(InterSessionMatcherTest, FusedHistorySubmapsAreSkipped) {
   MapContents history = data_->history;
   history.submaps[1].state = SubmapState::kFused;
@@ -345,6 +409,15 @@ TEST(InterSessionMatcherConfigTest, ValidatesFields) {
   EXPECT_FALSE(c.Validate().ok());
   c = InterSessionMatcherConfig();
   c.consistency.secondary_rotation_per_m = -0.1;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.sequence.max_gap_submaps = -1;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.sequence.max_candidates = 0;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.sequence.search_radius_m = 0.0;
   EXPECT_FALSE(c.Validate().ok());
   c = InterSessionMatcherConfig();
   c.registration.ransac_iterations = 0;

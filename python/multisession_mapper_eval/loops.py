@@ -1,12 +1,14 @@
 """The reference paper's inter-session loop-closure table and intra-session loop figures.
 
 Per new session (every session after the first, in merge order), each of its submaps is:
-- correct: it has at least one accepted `inter` loop and every accepted `inter` loop of it is
+- correct: it has at least one accepted `inter` or `inter_sequence` loop (the loops of place
+  recognition: by descriptor votes, or placed by a neighbour's loop when the votes found
+  nothing) and every such loop of it is
   correct, i.e. the estimated T_history_current is within `max_trans_m` and `max_rot_deg` of
   the ground-truth relative pose of the two submap origins AND the two submaps overlap in
   ground truth (some scan positions of the two within `overlap_radius_m`);
 - wrong: it has an accepted `inter` loop that is not correct;
-- undefined: no accepted `inter` loop; split into
+- undefined: no accepted `inter` or `inter_sequence` loop; split into
   - new (really new place): fewer than `overlap_min_fraction` of its scans have a scan of an
     earlier session (ground-truth position) within `overlap_radius_m`;
   - missed: otherwise (overlap existed but no match was accepted).
@@ -16,6 +18,8 @@ A submap that cannot be judged (missing from the manifest, whose `fused` entries
 stamps missing from the truth) is `unknown` and counted in `submaps_unknown`, never guessed.
 Loops found by the proximity search after alignment (kind `inter_proximity`) are counted
 separately and do not change the table (the paper's table measures place recognition).
+Submaps correct only through `inter_sequence` loops are counted in `submaps_correct_by_sequence`
+as well, so the descriptor-only figure stays visible.
 """
 
 import numpy as np
@@ -101,6 +105,9 @@ def session_table(map_dir, session_index, truth_trajectories, options):
     ids = sorted({s.id for s in map_dir.submaps_of(name)}
                  | {r.current_submap for r in rows if r.current_session in ('', name)})
     result = {'submaps_total': len(ids), 'submaps_correct': 0, 'submaps_wrong': 0,
+              'submaps_correct_by_sequence': 0,
+              'sequence_loops_accepted': 0, 'sequence_loops_correct': 0,
+              'sequence_loops_wrong': 0,
               'submaps_undefined_new': 0, 'submaps_undefined_missed': 0,
               'submaps_with_truth_overlap': 0,
               'inter_loops_accepted': 0, 'inter_loops_correct': 0, 'inter_loops_wrong': 0,
@@ -132,18 +139,24 @@ def session_table(map_dir, session_index, truth_trajectories, options):
                          if h in lookup.trajectories]
     history_positions = np.vstack(history_positions) if history_positions else np.zeros((0, 3))
     accepted = {}
+    by_descriptor = {}  # submap id -> whether one of its accepted loops is of kind `inter`
     inter_t, inter_r = [], []
     for row in rows:
-        if row.status != 'accepted' or row.kind not in ('inter', 'inter_proximity'):
+        if row.status != 'accepted' or row.kind not in ('inter', 'inter_sequence',
+                                                        'inter_proximity'):
             continue
         ok, t_err, r_err = _judge(row, submaps_by_key, lookup, options)
         if ok is None:
             result['loops_unjudged'] += 1
-        if row.kind == 'inter':
+        if row.kind in ('inter', 'inter_sequence'):
             accepted.setdefault(row.current_submap, []).append(ok)
-            result['inter_loops_accepted'] += 1
+            by_descriptor.setdefault(row.current_submap, False)
+            if row.kind == 'inter':
+                by_descriptor[row.current_submap] = True
+            prefix = 'inter_loops_' if row.kind == 'inter' else 'sequence_loops_'
+            result[prefix + 'accepted'] += 1
             if ok is not None:
-                result['inter_loops_correct' if ok else 'inter_loops_wrong'] += 1
+                result[prefix + ('correct' if ok else 'wrong')] += 1
             if t_err is not None:
                 inter_t.append(t_err)
                 inter_r.append(r_err)
@@ -171,5 +184,7 @@ def session_table(map_dir, session_index, truth_trajectories, options):
         else:
             status = 'undefined_missed' if overlaps else 'undefined_new'
         result['submaps_' + status] += 1
+        if status == 'correct' and not by_descriptor.get(submap_id, True):
+            result['submaps_correct_by_sequence'] += 1
         result['submap_status'][str(submap_id)] = status
     return result

@@ -56,14 +56,15 @@ def markdown(report):
                        _fmt(x['rpe_10m_pct'], '%.2f'), _fmt(x['rpe_100m_pct'], '%.2f'),
                        _fmt(x['rpe_100m_deg'], '%.2f')] for x in s]), '']
     parts += ['## Inter-session loop closure (the reference paper\'s table)', '',
-              _table(['session', 'submaps', 'correct', 'undefined (new)', 'undefined (missed)',
+              _table(['session', 'submaps', 'correct', 'of which by sequence', 'undefined (new)',
+                      'undefined (missed)',
                       'wrong', 'overlapping', 'loop err median [m / deg]', 'intra accepted',
                       'intra correct', 'intra wrong'],
                      [[x['name'], x['submaps_total']] +
-                      ([x['submaps_correct'], x['submaps_undefined_new'],
-                        x['submaps_undefined_missed'], x['submaps_wrong'],
-                        x['submaps_with_truth_overlap']] if x.get('has_history', True)
-                       else ['-'] * 5) + [
+                      ([x['submaps_correct'], x.get('submaps_correct_by_sequence', 0),
+                        x['submaps_undefined_new'], x['submaps_undefined_missed'],
+                        x['submaps_wrong'], x['submaps_with_truth_overlap']]
+                       if x.get('has_history', True) else ['-'] * 6) + [
                        '%s / %s' % (_fmt(x['inter_loop_trans_err_median_m']),
                                     _fmt(x['inter_loop_rot_err_median_deg'], '%.2f')),
                        x['intra_loops_accepted'], x['intra_loops_correct'],

@@ -24,6 +24,7 @@ struct Registered {
   Pose3 T_map_session;         // implied by this loop
   Eigen::Vector3d origin;      // current submap origin, session frame
   double path_m = 0.0;         // distance driven in the session up to the current submap
+  std::size_t current = 0;     // index into the session's submaps
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
@@ -104,6 +105,19 @@ Status SequenceConsistencyConfig::Validate() const {
   return Status::Ok();
 }
 
+Status SequenceGuidanceConfig::Validate() const {
+  if (max_gap_submaps < 0) {
+    return Status::Error("inter_session.sequence_max_gap_submaps must be >= 0");
+  }
+  if (max_candidates < 1) {
+    return Status::Error("inter_session.sequence_max_candidates must be >= 1");
+  }
+  if (!(search_radius_m > 0.0)) {
+    return Status::Error("inter_session.sequence_search_radius_m must be > 0");
+  }
+  return Status::Ok();
+}
+
 Status InterSessionMatcherConfig::Validate() const {
   Status s = voting.Validate();
   if (!s.ok()) return s;
@@ -113,7 +127,9 @@ Status InterSessionMatcherConfig::Validate() const {
   if (num_threads < 1) return Status::Error("inter_session.num_threads must be >= 1");
   s = registration.Validate();
   if (!s.ok()) return s;
-  return consistency.Validate();
+  s = consistency.Validate();
+  if (!s.ok()) return s;
+  return sequence.Validate();
 }
 
 StatusOr<InterSessionMatcher> InterSessionMatcher::Create(const InterSessionMatcherConfig& config) {
@@ -122,156 +138,132 @@ StatusOr<InterSessionMatcher> InterSessionMatcher::Create(const InterSessionMatc
   return InterSessionMatcher(config);
 }
 
-StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
-    const MapContents& history, const SessionResult& current,
-    const PlaceRecognizer& recognizer) const {
-  StatusOr<SubmapVoting> voting = SubmapVoting::Create(config_.voting);
-  if (!voting.ok()) return voting.status();
-  StatusOr<GlobalRegistration> registration = GlobalRegistration::Create(config_.registration);
-  if (!registration.ok()) return registration.status();
+namespace {
 
-  std::map<HistorySubmapId, std::size_t> index_of;
-  std::map<HistorySubmapId, Eigen::Vector3d> active_origins;
-  for (std::size_t i = 0; i < history.submaps.size(); ++i) {
-    const Submap& s = history.submaps[i];
-    const HistorySubmapId id{s.session, static_cast<int>(s.id)};
-    index_of[id] = i;
-    if (s.state == SubmapState::kActive) active_origins[id] = s.T_map_submap.translation();
-  }
-  const SubmapVoting::NeighbourRelation neighbours =
-      SubmapVoting::OriginsWithin(active_origins, config_.neighbour_distance_m);
+// A candidate pair to register: current submap index, history submap index, record index.
+struct Job {
+  std::size_t current = 0;
+  std::size_t history = 0;
+  std::size_t record = 0;
+  GlobalRegistrationResult reg;
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+using Jobs = std::vector<Job, Eigen::aligned_allocator<Job>>;
+using RegisteredLoops = std::vector<Registered, Eigen::aligned_allocator<Registered>>;
 
-  InterSessionMatchResult result;
-  // 1. Votes and the candidate pairs to register, in submap order (records keep that order).
-  struct Job {
-    std::size_t current = 0;  // index into current.submaps
-    std::size_t history = 0;  // index into history.submaps
-    std::size_t record = 0;   // index into result.records
-    GlobalRegistrationResult reg;
-    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
-  };
-  std::vector<Job, Eigen::aligned_allocator<Job>> jobs;
-  for (std::size_t c = 0; c < current.submaps.size(); ++c) {
-    const Submap& cur = current.submaps[c];
-    const SubmapVoteResult vote = voting.value().Vote(recognizer.VotesOf(cur.id), neighbours);
-    result.votes.push_back(vote);
-    LoopRecord base;
-    base.kind = LoopKind::kInter;
-    base.current_session = current.session;
-    base.current_submap = cur.id;
-    if (vote.outcome == SubmapVoteResult::Outcome::kUndefined) {
-      LoopRecord record = base;
-      record.status = LoopStatus::kUndefined;
-      record.vote_proportion = vote.proportions.empty() ? 0.0 : vote.proportions.front().proportion;
-      record.reason = vote.reason;
-      result.records.push_back(record);
-      continue;
+// Registers candidate pairs. Features and fine targets are prepared once per submap (a history
+// submap is the target of several current submaps) and kept for later batches; the preparation
+// time of a submap is charged to the first pair that needed it.
+class PairRegistrar {
+ public:
+  PairRegistrar(const MapContents& history, const SessionResult& current,
+                const GlobalRegistration& registration, int num_threads)
+      : history_(history), current_(current), registration_(registration),
+        num_threads_(num_threads) {
+    path_m_.assign(current.submaps.size(), 0.0);
+    for (std::size_t c = 1; c < current.submaps.size(); ++c) {
+      path_m_[c] = path_m_[c - 1] + current.submaps[c - 1].length_m;
     }
-    for (const HistorySubmapId& candidate : vote.candidates) {
-      LoopRecord record = base;
-      record.history_session = candidate.session;
-      record.history_submap = candidate.submap_id;
-      record.vote_proportion = ProportionOf(vote, candidate);
-      record.status = LoopStatus::kRejected;
-      const auto found = index_of.find(candidate);
-      if (found == index_of.end()) {
-        record.reason = "history submap not in the map";
-      } else if (history.submaps[found->second].state != SubmapState::kActive) {
-        record.reason = "history submap fused into a later session's";
-      } else {
-        Job job;
-        job.current = c;
-        job.history = found->second;
-        job.record = result.records.size();
-        jobs.push_back(job);
+  }
+
+  // Registers `jobs` and fills their records (status kCandidate when registration accepted
+  // them, kRejected with the reason otherwise); returns the accepted ones.
+  RegisteredLoops Run(Jobs* jobs, LoopRecords* records, std::vector<double>* registration_s) {
+    PrepareMissing(*jobs);
+    ParallelFor(jobs->size(), num_threads_, [&](std::size_t i) {
+      Job& job = (*jobs)[i];
+      const auto& source = prepared_.at({false, job.current});  // read-only lookups
+      const auto& target = prepared_.at({true, job.history});
+      if (source && target) job.reg = registration_.Register(*source, *target);
+    });
+    RegisteredLoops registered;
+    for (const Job& job : *jobs) {
+      LoopRecord& record = (*records)[job.record];
+      const Submap& cur = current_.submaps[job.current];
+      const Submap& hist = history_.submaps[job.history];
+      const Key keys[] = {{false, job.current}, {true, job.history}};
+      const auto* unprepared = std::find_if(std::begin(keys), std::end(keys),
+                                            [&](const Key& key) { return !prepared_.at(key); });
+      if (unprepared != std::end(keys)) {
+        record.reason = errors_.at(*unprepared);
+        continue;
       }
-      result.records.push_back(record);
+      double prepare_s = 0.0;
+      for (const Key& key : keys) {
+        if (charged_.insert(key).second) {
+          prepare_s += GlobalRegistration::PrepareSeconds(*prepared_.at(key));
+        }
+      }
+      const GlobalRegistrationResult& reg = job.reg;
+      registration_s->push_back(reg.time_s + prepare_s);
+      record.overlap_ratio = reg.overlap_ratio;
+      record.has_pose = true;
+      record.T_history_current = reg.T_target_source;
+      if (!reg.accepted) {
+        record.reason = "global registration: " + reg.reason;
+        continue;
+      }
+      Registered r;
+      r.loop.current_submap = cur.id;
+      r.loop.history_index = job.history;
+      r.loop.T_history_current = reg.T_target_source;
+      r.loop.information = reg.information;
+      r.loop.vote_proportion = record.vote_proportion;
+      r.loop.overlap_ratio = reg.overlap_ratio;
+      r.record = job.record;
+      r.T_map_session = hist.T_map_submap * reg.T_target_source * cur.T_map_submap.inverse();
+      r.origin = cur.T_map_submap.translation();
+      r.path_m = path_m_[job.current];
+      r.current = job.current;
+      registered.push_back(r);
+      record.status = LoopStatus::kCandidate;  // decided by the caller
+    }
+    return registered;
+  }
+
+ private:
+  using Key = std::pair<bool, std::size_t>;  // (history side, submap index)
+
+  void PrepareMissing(const Jobs& jobs) {
+    std::vector<Key> keys;
+    for (const Job& job : jobs) {
+      for (const Key& key : {Key{false, job.current}, Key{true, job.history}}) {
+        if (prepared_.emplace(key, nullptr).second) keys.push_back(key);
+      }
+    }
+    std::vector<StatusOr<std::shared_ptr<const PreparedSubmap>>> built(
+        keys.size(), Status::Error("not run"));
+    ParallelFor(keys.size(), num_threads_, [&](std::size_t i) {
+      const auto& [as_target, index] = keys[i];
+      const Submap& submap = as_target ? history_.submaps[index] : current_.submaps[index];
+      built[i] = registration_.Prepare(submap.points, as_target);
+    });
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+      if (built[i].ok()) {
+        prepared_[keys[i]] = built[i].value();
+      } else {
+        errors_[keys[i]] = (keys[i].first ? "history submap: " : "current submap: ") +
+                           built[i].status().message();
+      }
     }
   }
 
-  // 2. Features and fine targets, once per submap (a history submap is the target of several
-  // current submaps), on config_.num_threads threads.
-  std::map<std::pair<bool, std::size_t>, std::shared_ptr<const PreparedSubmap>> prepared;
-  for (const Job& job : jobs) {
-    prepared[{false, job.current}] = nullptr;
-    prepared[{true, job.history}] = nullptr;
-  }
-  std::vector<std::pair<bool, std::size_t>> keys;
-  for (const auto& entry : prepared) keys.push_back(entry.first);
-  std::vector<StatusOr<std::shared_ptr<const PreparedSubmap>>> built(keys.size(),
-                                                                     Status::Error("not run"));
-  ParallelFor(keys.size(), config_.num_threads, [&](std::size_t i) {
-    const auto& [as_target, index] = keys[i];
-    const Submap& submap = as_target ? history.submaps[index] : current.submaps[index];
-    built[i] = registration.value().Prepare(submap.points, as_target);
-  });
-  std::map<std::pair<bool, std::size_t>, std::string> prepare_error;
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    if (built[i].ok()) {
-      prepared[keys[i]] = built[i].value();
-    } else {
-      prepare_error[keys[i]] = (keys[i].first ? "history submap: " : "current submap: ") +
-                               built[i].status().message();
-    }
-  }
+  const MapContents& history_;
+  const SessionResult& current_;
+  const GlobalRegistration& registration_;
+  const int num_threads_;
+  std::vector<double> path_m_;  // distance driven in the session before each submap
+  std::map<Key, std::shared_ptr<const PreparedSubmap>> prepared_;
+  std::map<Key, std::string> errors_;
+  std::set<Key> charged_;
+};
 
-  // 3. Global registration of every pair whose submaps could be prepared.
-  ParallelFor(jobs.size(), config_.num_threads, [&](std::size_t i) {
-    Job& job = jobs[i];
-    const auto& source = prepared.at({false, job.current});  // read-only lookups
-    const auto& target = prepared.at({true, job.history});
-    if (source && target) job.reg = registration.value().Register(*source, *target);
-  });
-
-  // 4. Records and the loops waiting for the sequence-consistency check. The preparation time
-  // of a submap is charged to the first pair that needed it.
-  std::vector<Registered, Eigen::aligned_allocator<Registered>> registered;
-  std::set<std::pair<bool, std::size_t>> charged;
-  std::vector<double> path_m(current.submaps.size(), 0.0);  // driven before each submap
-  for (std::size_t c = 1; c < current.submaps.size(); ++c) {
-    path_m[c] = path_m[c - 1] + current.submaps[c - 1].length_m;
-  }
-  for (const Job& job : jobs) {
-    LoopRecord& record = result.records[job.record];
-    const Submap& cur = current.submaps[job.current];
-    const Submap& hist = history.submaps[job.history];
-    const std::pair<bool, std::size_t> keys[] = {{false, job.current}, {true, job.history}};
-    const auto* unprepared = std::find_if(std::begin(keys), std::end(keys),
-                                          [&](const auto& key) { return !prepared.at(key); });
-    if (unprepared != std::end(keys)) {
-      record.reason = prepare_error.at(*unprepared);
-      continue;
-    }
-    double prepare_s = 0.0;
-    for (const auto& key : keys) {
-      if (charged.insert(key).second) prepare_s += GlobalRegistration::PrepareSeconds(*prepared.at(key));
-    }
-    const GlobalRegistrationResult& reg = job.reg;
-    result.registration_s.push_back(reg.time_s + prepare_s);
-    record.overlap_ratio = reg.overlap_ratio;
-    record.has_pose = true;
-    record.T_history_current = reg.T_target_source;
-    if (!reg.accepted) {
-      record.reason = "global registration: " + reg.reason;
-      continue;
-    }
-    Registered r;
-    r.loop.current_submap = cur.id;
-    r.loop.history_index = job.history;
-    r.loop.T_history_current = reg.T_target_source;
-    r.loop.information = reg.information;
-    r.loop.vote_proportion = record.vote_proportion;
-    r.loop.overlap_ratio = reg.overlap_ratio;
-    r.record = job.record;
-    r.T_map_session = hist.T_map_submap * reg.T_target_source * cur.T_map_submap.inverse();
-    r.origin = cur.T_map_submap.translation();
-    r.path_m = path_m[job.current];
-    registered.push_back(r);
-    record.status = LoopStatus::kCandidate;  // decided below
-  }
-
-  // Sequence consistency: the largest group of loops agreeing with one of them.
-  const SequenceConsistencyConfig& consistency = config_.consistency;
+// Sequence consistency: which registered loops are accepted (in the result's loops and
+// records; the others' records are rejected with the reason) and T_map_session.
+std::vector<bool> DecideConsistency(const RegisteredLoops& registered,
+                                    const SequenceConsistencyConfig& consistency,
+                                    InterSessionMatchResult* result) {
+  // The largest group of loops agreeing with one of them.
   std::vector<std::size_t> best_group;
   double best_overlap_sum = -1.0;
   for (std::size_t i = 0; i < registered.size(); ++i) {
@@ -336,10 +328,10 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
     }
   }
   for (std::size_t j = 0; j < registered.size(); ++j) {
-    LoopRecord& record = result.records[registered[j].record];
+    LoopRecord& record = result->records[registered[j].record];
     if (in_group[j]) {
       record.status = LoopStatus::kAccepted;
-      result.loops.push_back(registered[j].loop);
+      result->loops.push_back(registered[j].loop);
     } else {
       record.status = LoopStatus::kRejected;
       record.reason =
@@ -353,8 +345,190 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
     }
   }
   if (anchor < registered.size()) {
-    result.T_map_session = registered[anchor].T_map_session;
-    result.aligned = true;
+    result->T_map_session = registered[anchor].T_map_session;
+    result->aligned = true;
+  }
+  return in_group;
+}
+
+// Sensor positions of the submap's scans in the frame `T_frame_map` * (submap's map frame).
+std::vector<Eigen::Vector3d> ScanPositions(const Submap& submap, const Pose3& T_frame_map) {
+  std::vector<Eigen::Vector3d> positions;
+  const Pose3 T_frame_submap = T_frame_map * submap.T_map_submap;
+  for (const SubmapScanRecord& scan : submap.scans) {
+    positions.push_back(T_frame_submap * scan.T_submap_sensor.translation());
+  }
+  if (positions.empty()) positions.push_back(T_frame_submap.translation());
+  return positions;
+}
+
+// Share of `a` with a point of `b` within `radius_m` (brute force: ~100 scans per submap).
+double ShareNear(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                 double radius_m) {
+  const double r2 = radius_m * radius_m;
+  std::size_t near = 0;
+  for (const Eigen::Vector3d& p : a) {
+    near += std::any_of(b.begin(), b.end(),
+                        [&](const Eigen::Vector3d& q) { return (p - q).squaredNorm() <= r2; });
+  }
+  return a.empty() ? 0.0 : static_cast<double>(near) / static_cast<double>(a.size());
+}
+
+// Sequence guidance (see SequenceGuidanceConfig): loops for the submaps the votes left without
+// one, placed by an accepted loop of a neighbour along the session.
+void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents& history,
+                     const SessionResult& current, const RegisteredLoops& registered,
+                     const std::vector<bool>& accepted, PairRegistrar* registrar,
+                     InterSessionMatchResult* result) {
+  const SequenceGuidanceConfig& sequence = config.sequence;
+  const long n = static_cast<long>(current.submaps.size());
+  // Per current submap: its accepted loop with the largest overlap.
+  std::vector<const Registered*> reference(current.submaps.size(), nullptr);
+  for (std::size_t j = 0; j < registered.size(); ++j) {
+    if (!accepted[j]) continue;
+    const Registered*& best = reference[registered[j].current];
+    if (!best || registered[j].loop.overlap_ratio > best->loop.overlap_ratio) {
+      best = &registered[j];
+    }
+  }
+  Jobs jobs;
+  std::map<std::size_t, const Registered*> reference_of_record;
+  std::vector<std::vector<Eigen::Vector3d>> history_positions(history.submaps.size());
+  for (long c = 0; c < n; ++c) {
+    if (reference[c]) continue;
+    // The nearest submap along the session with an accepted loop (ties: larger overlap).
+    const Registered* ref = nullptr;
+    for (int gap = 1; gap <= sequence.max_gap_submaps && !ref; ++gap) {
+      for (const long k : {c - gap, c + gap}) {
+        if (k < 0 || k >= n || !reference[k]) continue;
+        if (!ref || reference[k]->loop.overlap_ratio > ref->loop.overlap_ratio) {
+          ref = reference[k];
+        }
+      }
+    }
+    if (!ref) continue;
+    const Submap& cur = current.submaps[c];
+    const std::vector<Eigen::Vector3d> placed = ScanPositions(cur, ref->T_map_session);
+    // (share of the placed scans with a history scan near, history index), best first.
+    std::vector<std::pair<double, std::size_t>> nearest;
+    for (std::size_t h = 0; h < history.submaps.size(); ++h) {
+      if (history.submaps[h].state != SubmapState::kActive) continue;
+      if (history_positions[h].empty()) {
+        history_positions[h] = ScanPositions(history.submaps[h], Pose3::Identity());
+      }
+      const double share = ShareNear(placed, history_positions[h], sequence.search_radius_m);
+      if (share > 0.0) nearest.emplace_back(-share, h);
+    }
+    std::sort(nearest.begin(), nearest.end());
+    nearest.resize(std::min<std::size_t>(nearest.size(), sequence.max_candidates));
+    const Submap& neighbour = current.submaps[ref->current];
+    for (const auto& [share, h] : nearest) {
+      (void)share;
+      LoopRecord record;
+      record.kind = LoopKind::kInterSequence;
+      record.current_session = current.session;
+      record.current_submap = cur.id;
+      record.history_session = history.submaps[h].session;
+      record.history_submap = history.submaps[h].id;
+      record.status = LoopStatus::kRejected;
+      record.reason = "placed by the loop of submap " + std::to_string(neighbour.id);
+      Job job;
+      job.current = static_cast<std::size_t>(c);
+      job.history = h;
+      job.record = result->records.size();
+      jobs.push_back(job);
+      reference_of_record[job.record] = ref;
+      result->records.push_back(record);
+    }
+  }
+  if (jobs.empty()) return;
+  for (const Registered& r : registrar->Run(&jobs, &result->records, &result->registration_s)) {
+    LoopRecord& record = result->records[r.record];
+    const Registered& ref = *reference_of_record.at(r.record);
+    if (Agree(r, ref, config.consistency)) {
+      record.status = LoopStatus::kAccepted;
+      record.reason.clear();
+      result->loops.push_back(r.loop);
+    } else {
+      record.status = LoopStatus::kRejected;
+      record.reason = "disagrees with the loop of submap " +
+                      std::to_string(current.submaps[ref.current].id) + " that placed it";
+    }
+  }
+}
+
+}  // namespace
+
+StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
+    const MapContents& history, const SessionResult& current,
+    const PlaceRecognizer& recognizer) const {
+  StatusOr<SubmapVoting> voting = SubmapVoting::Create(config_.voting);
+  if (!voting.ok()) return voting.status();
+  StatusOr<GlobalRegistration> registration = GlobalRegistration::Create(config_.registration);
+  if (!registration.ok()) return registration.status();
+
+  std::map<HistorySubmapId, std::size_t> index_of;
+  std::map<HistorySubmapId, Eigen::Vector3d> active_origins;
+  for (std::size_t i = 0; i < history.submaps.size(); ++i) {
+    const Submap& s = history.submaps[i];
+    const HistorySubmapId id{s.session, static_cast<int>(s.id)};
+    index_of[id] = i;
+    if (s.state == SubmapState::kActive) active_origins[id] = s.T_map_submap.translation();
+  }
+  const SubmapVoting::NeighbourRelation neighbours =
+      SubmapVoting::OriginsWithin(active_origins, config_.neighbour_distance_m);
+
+  InterSessionMatchResult result;
+  // 1. Votes and the candidate pairs to register, in submap order (records keep that order).
+  Jobs jobs;
+  for (std::size_t c = 0; c < current.submaps.size(); ++c) {
+    const Submap& cur = current.submaps[c];
+    const SubmapVoteResult vote = voting.value().Vote(recognizer.VotesOf(cur.id), neighbours);
+    result.votes.push_back(vote);
+    LoopRecord base;
+    base.kind = LoopKind::kInter;
+    base.current_session = current.session;
+    base.current_submap = cur.id;
+    if (vote.outcome == SubmapVoteResult::Outcome::kUndefined) {
+      LoopRecord record = base;
+      record.status = LoopStatus::kUndefined;
+      record.vote_proportion = vote.proportions.empty() ? 0.0 : vote.proportions.front().proportion;
+      record.reason = vote.reason;
+      result.records.push_back(record);
+      continue;
+    }
+    for (const HistorySubmapId& candidate : vote.candidates) {
+      LoopRecord record = base;
+      record.history_session = candidate.session;
+      record.history_submap = candidate.submap_id;
+      record.vote_proportion = ProportionOf(vote, candidate);
+      record.status = LoopStatus::kRejected;
+      const auto found = index_of.find(candidate);
+      if (found == index_of.end()) {
+        record.reason = "history submap not in the map";
+      } else if (history.submaps[found->second].state != SubmapState::kActive) {
+        record.reason = "history submap fused into a later session's";
+      } else {
+        Job job;
+        job.current = c;
+        job.history = found->second;
+        job.record = result.records.size();
+        jobs.push_back(job);
+      }
+      result.records.push_back(record);
+    }
+  }
+
+  // 2. Global registration of every candidate pair, on config_.num_threads threads.
+  PairRegistrar registrar(history, current, registration.value(), config_.num_threads);
+  const RegisteredLoops registered = registrar.Run(&jobs, &result.records, &result.registration_s);
+
+  // 3. Sequence consistency.
+  const std::vector<bool> in_group = DecideConsistency(registered, config_.consistency, &result);
+
+  // 4. Sequence guidance for the submaps still without a loop.
+  if (result.aligned && config_.sequence.max_gap_submaps > 0) {
+    MatchBySequence(config_, history, current, registered, in_group, &registrar, &result);
   }
   return result;
 }

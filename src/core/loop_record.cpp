@@ -14,6 +14,8 @@ const char* LoopKindName(LoopKind kind) {
       return "inter";
     case LoopKind::kInterProximity:
       return "inter_proximity";
+    case LoopKind::kInterSequence:
+      return "inter_sequence";
   }
   return "unknown";
 }

@@ -93,6 +93,7 @@ std::string ChangeLogYaml(const MergeReport& report, const SessionRecord& record
   out << YAML::Key << "session" << YAML::Value << record.name;
   out << YAML::Key << "merged_at" << YAML::Value << record.merged_at;
   out << YAML::Key << "inter_session_loops" << YAML::Value << report.inter_loops;
+  out << YAML::Key << "sequence_loops" << YAML::Value << report.sequence_loops;
   out << YAML::Key << "proximity_loops" << YAML::Value << report.proximity_loops;
   out << YAML::Key << "submaps_added" << YAML::Value << YAML::Flow << added;
   out << YAML::Key << "submaps_fused" << YAML::Value << YAML::Flow << fused;
@@ -414,6 +415,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   }
   for (const LoopRecord& r : records) {
     report.inter_loops += r.kind == LoopKind::kInter && r.status == LoopStatus::kAccepted;
+    report.sequence_loops +=
+        r.kind == LoopKind::kInterSequence && r.status == LoopStatus::kAccepted;
     report.proximity_loops +=
         r.kind == LoopKind::kInterProximity && r.status == LoopStatus::kAccepted;
   }

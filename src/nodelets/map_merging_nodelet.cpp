@@ -231,7 +231,8 @@ class MapMergingNodelet : public nodelet::Nodelet {
     map_.files["timing/" + record.name + ".yaml"] = core::TimingYaml(timings, run);
     std::ostringstream summary;
     summary << "session '" << r.session << "'" << (r.first_session ? " (first)" : "") << ": "
-            << r.inter_loops << " inter-session loops, " << r.proximity_loops
+            << r.inter_loops << " inter-session loops, " << r.sequence_loops
+            << " by sequence, " << r.proximity_loops
             << " proximity loops, " << r.submaps_added << " submaps added, " << r.submaps_fused
             << " fused, " << r.points_removed << " dynamic points removed, " << r.points_mended
             << " mended, merge " << r.total_s << " s";
@@ -257,7 +258,7 @@ class MapMergingNodelet : public nodelet::Nodelet {
     response.success = saved.ok();
     response.message = text.data;
     response.submaps_added = static_cast<std::uint32_t>(r.submaps_added);
-    response.inter_session_loops = static_cast<std::uint32_t>(r.inter_loops + r.proximity_loops);
+    response.inter_session_loops = static_cast<std::uint32_t>(r.inter_loops + r.sequence_loops + r.proximity_loops);
     response.dynamic_points_removed = static_cast<std::uint32_t>(r.points_removed);
     return response;
   }

@@ -57,3 +57,27 @@ def test_submap_missing_from_manifest_is_unknown(synthetic_dirs, tmp_path):
     assert tables[1]['submaps_total'] == 6 and tables[1]['submaps_unknown'] == 1
     assert tables[1]['loops_unjudged'] == 1 and tables[1]['submaps_wrong'] == 2
     assert tables[1]['submap_status']['7'] == 'unknown'
+
+
+def test_sequence_loops_count_in_the_table_and_separately(synthetic_dirs, tmp_path):
+    import shutil
+    map_copy = str(tmp_path / 'map')
+    shutil.copytree(synthetic_dirs[0], map_copy)
+    with open(map_copy + '/loops/s01.csv') as f:
+        lines = f.read().splitlines()
+    # Submap 2 ("missed": its `inter` candidate was rejected) gets an exact sequence-guided loop,
+    # submap 3 (a new place) one with the same pose as submap 2's, which is wrong there.
+    proximity = next(l for l in lines if l.startswith('inter_proximity,s01,2,'))
+    sequence = 'inter_sequence' + proximity[len('inter_proximity'):]
+    wrong = sequence.replace('inter_sequence,s01,2,', 'inter_sequence,s01,3,', 1)
+    with open(map_copy + '/loops/s01.csv', 'a') as f:
+        f.write(sequence + '\n' + wrong + '\n')
+    before = _tables(*synthetic_dirs)[1]
+    t = _tables(map_copy, synthetic_dirs[1])[1]
+    assert t['submap_status']['2'] == 'correct' and t['submap_status']['3'] == 'wrong'
+    assert t['submaps_correct'] == before['submaps_correct'] + 1
+    assert t['submaps_correct_by_sequence'] == 1
+    assert t['sequence_loops_accepted'] == 2
+    assert t['sequence_loops_correct'] == 1 and t['sequence_loops_wrong'] == 1
+    assert t['inter_loops_accepted'] == before['inter_loops_accepted']
+    assert before['submaps_correct_by_sequence'] == 0

@@ -59,12 +59,33 @@ struct SequenceConsistencyConfig {
   Status Validate() const;
 };
 
+/// Sequence guidance. The descriptors leave some submaps that overlap the map without a vote:
+/// none of their scans has a history scan within d_alpha (campus: 3 of 40 overlapping
+/// submaps of s01, 4 of 34 of s02, each next to matched ones; the nearest history scans were
+/// 0.10-0.15 away where revisits match at 0.055-0.07). A submap without an accepted loop whose
+/// neighbour along the session, at most `max_gap_submaps` submaps away, has one is placed in
+/// the map by that loop and the session's odometry between the two; it is then registered
+/// without initial guess (the same global registration) against the `max_candidates` active
+/// history submaps driven nearest that place: those with the largest share of the placed
+/// submap's scan positions within `search_radius_m` [m] of one of theirs (a revisit, not a
+/// view across a block); a loop is kept only when it also agrees with the neighbour's loop
+/// under the sequence-consistency bounds. Such loops are recorded with kind `inter_sequence`.
+/// 0 gap: off.
+struct SequenceGuidanceConfig {
+  int max_gap_submaps = 2;
+  int max_candidates = 2;
+  double search_radius_m = 10.0;
+
+  Status Validate() const;
+};
+
 struct InterSessionMatcherConfig {
   SubmapVotingConfig voting;
   /// History submaps whose origins are this close are neighbours for the top-n vote [m].
   double neighbour_distance_m = 30.0;
   GlobalRegistrationConfig registration;
   SequenceConsistencyConfig consistency;
+  SequenceGuidanceConfig sequence;
   /// Threads for preparing and registering the candidate pairs. Not a YAML key: SessionMerger
   /// sets it from map_update.num_threads (one thread budget for the whole merge).
   int num_threads = 1;
@@ -85,9 +106,11 @@ struct InterSessionLoop {
 };
 
 struct InterSessionMatchResult {
-  /// Accepted loops (after registration and sequence consistency).
+  /// Accepted loops (after registration and sequence consistency), then the sequence-guided
+  /// ones.
   std::vector<InterSessionLoop, Eigen::aligned_allocator<InterSessionLoop>> loops;
-  /// Every candidate and undefined submap with its fate (kind kInter), for loops/<s>.csv.
+  /// Every candidate and undefined submap with its fate (kind kInter; sequence-guided
+  /// candidates kInterSequence), for loops/<s>.csv.
   LoopRecords records;
   /// Per current submap: the vote (ordered like SessionResult::submaps).
   std::vector<SubmapVoteResult> votes;

@@ -11,7 +11,7 @@
 namespace multisession_mapper {
 namespace core {
 
-enum class LoopKind { kIntra, kInter, kInterProximity };
+enum class LoopKind { kIntra, kInter, kInterProximity, kInterSequence };
 enum class LoopStatus { kCandidate, kAccepted, kRejected, kUndefined };
 
 struct LoopRecord {

@@ -85,6 +85,7 @@ struct MergeReport {
   std::string session;
   bool first_session = false;
   std::size_t inter_loops = 0;      ///< accepted by place recognition + global registration
+  std::size_t sequence_loops = 0;   ///< accepted by sequence guidance (before the joint graph)
   std::size_t proximity_loops = 0;  ///< accepted by the second search
   std::size_t submaps_added = 0;    ///< new submaps kept as submaps
   std::size_t submaps_fused = 0;    ///< new submaps fused into history submaps
