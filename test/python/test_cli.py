@@ -106,7 +106,7 @@ def test_outputs_and_printed_tables(report):
         assert os.path.isfile(os.path.join(out, name)), name
     assert sorted(data['plots']) == ['loop_table.png', 'map_top.png',
                                      'place_recognition_pr.png', 'trajectories.png']
-    assert 'Inter-session loop closure' in stdout and '| s01 | 5 | 1 | 1 | 1 | 2 |' in stdout
+    assert 'Inter-session loop closure' in stdout and '| s01 | 5 | 1 | 0 | 1 | 1 | 2 |' in stdout
     assert data['warnings'] == ['s00: no timing/s00.yaml'] or data['warnings'] == []
 
 
