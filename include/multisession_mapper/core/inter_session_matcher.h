@@ -8,7 +8,9 @@
 // session's odometry (sequence consistency): every accepted loop implies a transform
 // map <- session, and only the largest group of loops that imply the same transform (within
 // bounds) pulls the session in, so that a single aliased place cannot; further groups are kept
-// when they agree with it up to the odometry drift between them (see the config).
+// when they agree with it up to the odometry drift between them (see the config). Last,
+// sequence guidance registers the submaps the votes left without a loop against the history
+// submaps where an accepted neighbour's loop places them (SequenceGuidanceConfig).
 #pragma once
 
 #include <cstdint>
