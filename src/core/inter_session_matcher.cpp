@@ -11,6 +11,7 @@
 
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/submap.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -353,12 +354,11 @@ std::vector<bool> DecideConsistency(const RegisteredLoops& registered,
 
 // Sensor positions of the submap's scans in the frame `T_frame_map` * (submap's map frame).
 std::vector<Eigen::Vector3d> ScanPositions(const Submap& submap, const Pose3& T_frame_map) {
+  Trajectory poses;  // map frame
+  AppendScanPoses(submap, &poses);
   std::vector<Eigen::Vector3d> positions;
-  const Pose3 T_frame_submap = T_frame_map * submap.T_map_submap;
-  for (const SubmapScanRecord& scan : submap.scans) {
-    positions.push_back(T_frame_submap * scan.T_submap_sensor.translation());
-  }
-  if (positions.empty()) positions.push_back(T_frame_submap.translation());
+  for (const StampedPose& scan : poses) positions.push_back(T_frame_map * scan.pose.translation());
+  if (positions.empty()) positions.push_back(T_frame_map * submap.T_map_submap.translation());
   return positions;
 }
 
