@@ -421,7 +421,6 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
     }
     std::sort(nearest.begin(), nearest.end());
     nearest.resize(std::min<std::size_t>(nearest.size(), sequence.max_candidates));
-    const Submap& neighbour = current.submaps[ref->current];
     for (const auto& [share, h] : nearest) {
       (void)share;
       LoopRecord record;
@@ -430,8 +429,7 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
       record.current_submap = cur.id;
       record.history_session = history.submaps[h].session;
       record.history_submap = history.submaps[h].id;
-      record.status = LoopStatus::kRejected;
-      record.reason = "placed by the loop of submap " + std::to_string(neighbour.id);
+      record.status = LoopStatus::kRejected;  // reason and fate: set after registration
       Job job;
       job.current = static_cast<std::size_t>(c);
       job.history = h;
