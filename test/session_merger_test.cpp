@@ -1,9 +1,12 @@
 #include "multisession_mapper/core/session_merger.h"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <memory>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -13,6 +16,16 @@
 namespace multisession_mapper {
 namespace core {
 namespace {
+
+// Fields of one line of the loops CSV, split at commas (a reason may hold commas; it is the
+// last field and is not read here).
+std::vector<std::string> SplitCsv(const std::string& line) {
+  std::vector<std::string> fields;
+  std::istringstream in(line);
+  std::string field;
+  while (std::getline(in, field, ',')) fields.push_back(field);
+  return fields;
+}
 
 // Two sessions through the same street of boxes: the first drives it one way with a parked
 // car (a box) beside the road, the second the opposite way, starting elsewhere, with the car
@@ -196,7 +209,32 @@ TEST_F(SessionMergerTest, MergesAReversedSessionRemovesTheCarAndDoesNotGrow) {
   // views, but the new submaps are fused into the history ones, not added beside them.
   EXPECT_GT(report.submaps_fused, 0u);
   EXPECT_TRUE(map.files.count("changes/s01.yaml"));
-  EXPECT_TRUE(map.files.count("loops/s01.csv"));
+  ASSERT_TRUE(map.files.count("loops/s01.csv"));
+  {
+    // Accepted voted loops came from global registration: their row carries the structure
+    // overlap that passed its threshold.
+    std::istringstream csv(map.files.at("loops/s01.csv"));
+    std::string line;
+    std::getline(csv, line);
+    std::vector<std::string> header = SplitCsv(line);
+    const auto column = [&header](const std::string& name) {
+      return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) -
+                                      header.begin());
+    };
+    const std::size_t kind = column("kind"), status = column("status"),
+                      structure = column("structure_overlap_ratio");
+    ASSERT_LT(structure, header.size()) << line;
+    int checked = 0;
+    while (std::getline(csv, line)) {
+      const std::vector<std::string> row = SplitCsv(line);
+      ASSERT_GT(row.size(), structure) << line;
+      if (row[kind] != "inter" || row[status] != "accepted") continue;
+      EXPECT_GE(std::stod(row[structure]),
+                GlobalRegistrationConfig().min_structure_overlap_ratio) << line;
+      ++checked;
+    }
+    EXPECT_GT(checked, 0);
+  }
   EXPECT_LT(ActivePoints(map), points_before * 2);
 
   // Session 3 repeats session 1's drive without the car: nothing new to see, so the map must

@@ -112,6 +112,8 @@ class LoopRow(object):
         self.status = row.get('status', '')
         self.vote_proportion = _float(row.get('vote_proportion'))
         self.overlap_ratio = _float(row.get('overlap_ratio'))
+        # Since session 11; older maps have no such column.
+        self.structure_overlap_ratio = _float(row.get('structure_overlap_ratio'))
         pose = [_float(row.get(k)) for k in ('tx', 'ty', 'tz', 'qx', 'qy', 'qz', 'qw')]
         self.pose = tr.pose_from_list(pose) if None not in pose else None
         self.reason = row.get('reason', '')

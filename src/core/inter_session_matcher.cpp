@@ -198,6 +198,7 @@ class PairRegistrar {
       const GlobalRegistrationResult& reg = job.reg;
       registration_s->push_back(reg.time_s + prepare_s);
       record.overlap_ratio = reg.overlap_ratio;
+      record.structure_overlap_ratio = reg.structure_overlap_ratio;
       record.has_pose = true;
       record.T_history_current = reg.T_target_source;
       if (!reg.accepted) {

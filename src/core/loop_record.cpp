@@ -37,13 +37,14 @@ const char* LoopStatusName(LoopStatus status) {
 std::string LoopRecordsToCsv(const LoopRecords& records) {
   std::ostringstream out;
   out << "kind,current_session,current_submap,history_session,history_submap,status,"
-         "vote_proportion,overlap_ratio,tx,ty,tz,qx,qy,qz,qw,reason\n";
+         "vote_proportion,overlap_ratio,structure_overlap_ratio,tx,ty,tz,qx,qy,qz,qw,reason\n";
   out << std::setprecision(9);
   for (const LoopRecord& r : records) {
     out << LoopKindName(r.kind) << ',' << r.current_session << ',' << r.current_submap << ','
         << r.history_session << ',';
     if (r.history_submap >= 0) out << r.history_submap;
-    out << ',' << LoopStatusName(r.status) << ',' << r.vote_proportion << ',' << r.overlap_ratio;
+    out << ',' << LoopStatusName(r.status) << ',' << r.vote_proportion << ',' << r.overlap_ratio
+        << ',' << r.structure_overlap_ratio;
     if (r.has_pose) {
       const Eigen::Quaterniond q(r.T_history_current.rotation());
       const Eigen::Vector3d& t = r.T_history_current.translation();

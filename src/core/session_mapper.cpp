@@ -185,6 +185,7 @@ struct SessionMapper::State {
     record->status = LoopStatus::kAccepted;
     record->reason.clear();
     record->overlap_ratio = g.overlap_ratio;
+    record->structure_overlap_ratio = g.structure_overlap_ratio;
     record->T_history_current = g.T_target_source;
     *information = g.information;
   }

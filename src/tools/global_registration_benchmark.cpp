@@ -145,6 +145,16 @@ int main(int argc, char** argv) {
       times.push_back(result.time_s);
       coarse_times.push_back(result.coarse_time_s);
       far_accepted += result.accepted;
+      if (result.accepted) {
+        // Is the place itself mirror-symmetric (a straight street lined alike on both sides)?
+        // Then its mirror image is nearly the same place, and the acceptance says little.
+        const core::GlobalRegistrationResult self = registration.Register(submaps[t].points, mirrored);
+        std::printf("  %s %zu <- mirrored %zu: ACCEPTED, overlap %.2f, structure %.2f; the target "
+                    "against its own mirror image: %s, overlap %.2f, structure %.2f\n",
+                    core::GlobalRegistrationMethodName(m), s, t, result.overlap_ratio,
+                    result.structure_overlap_ratio, self.accepted ? "accepted" : "rejected",
+                    self.overlap_ratio, self.structure_overlap_ratio);
+      }
     }
     std::printf("[%s] overlapping: %d/%zu accepted, %d of them wrong (> 1 m / 3 deg), error median "
                 "%.3f m / %.3f deg; mirrored: %d/%zu accepted (must be 0); time per pair median "

@@ -26,6 +26,15 @@ def test_map_directory_reader(synthetic_dirs):
     assert len(points) == 126
 
 
+def test_loop_rows_read_the_structure_overlap_when_present():
+    base = {'kind': 'inter', 'current_submap': '3', 'history_submap': '1', 'status': 'accepted',
+            'overlap_ratio': '0.8'}
+    assert io.LoopRow(base).structure_overlap_ratio is None  # maps before the column existed
+    row = io.LoopRow(dict(base, structure_overlap_ratio='0.62'))
+    assert row.structure_overlap_ratio == pytest.approx(0.62)
+    assert row.overlap_ratio == pytest.approx(0.8)
+
+
 def test_truth_reader(synthetic_dirs):
     truth = io.Truth(synthetic_dirs[1])
     assert truth.resolve('s01') == 's01' and truth.resolve('nope') is None

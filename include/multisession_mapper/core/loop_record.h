@@ -23,6 +23,9 @@ struct LoopRecord {
   LoopStatus status = LoopStatus::kCandidate;
   double vote_proportion = 0.0;
   double overlap_ratio = 0.0;
+  /// Overlap of the source's structure points (walls, trunks, poles) after a registration
+  /// without initial guess (GlobalRegistrationResult); 0 for registrations from a prior.
+  double structure_overlap_ratio = 0.0;
   bool has_pose = false;
   Pose3 T_history_current = Pose3::Identity();
   std::string reason;
