@@ -123,6 +123,19 @@ TEST_F(SyntheticPairTest, RejectsSubmapsOfDifferentPlaces) {
   EXPECT_FALSE(r.reason.empty());
 }
 
+// A place that does not exist: the target mirrored (y -> -y). Its ground and some of its
+// structure still line up with the source under some rigid pose, but too little structure.
+TEST_F(SyntheticPairTest, RejectsTheMirrorImageOfTheTarget) {
+  PointVector mirrored = target_;
+  for (Eigen::Vector3d& p : mirrored) p.y() = -p.y();
+  const GlobalRegistration registration =
+      GlobalRegistration::Create(GlobalRegistrationConfig()).value();
+  const GlobalRegistrationResult r = registration.Register(source_, mirrored);
+  std::cout << "mirrored pair: " << r.reason << " (overlap " << r.overlap_ratio
+            << ", structure " << r.structure_overlap_ratio << ")" << std::endl;
+  EXPECT_FALSE(r.accepted);
+}
+
 TEST_F(SyntheticPairTest, YawSearchMethodRunsAndNeverAcceptsAWrongPose) {
   GlobalRegistrationConfig config;
   config.method = GlobalRegistrationConfig::Method::kYawSearchIcp;
