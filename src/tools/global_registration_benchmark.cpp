@@ -148,7 +148,8 @@ int main(int argc, char** argv) {
       if (result.accepted) {
         // Is the place itself mirror-symmetric (a straight street lined alike on both sides)?
         // Then its mirror image is nearly the same place, and the acceptance says little.
-        const core::GlobalRegistrationResult self = registration.Register(submaps[t].points, mirrored);
+        const core::GlobalRegistrationResult self =
+            registration.Register(submaps[t].points, mirrored);
         std::printf("  %s %zu <- mirrored %zu: ACCEPTED, overlap %.2f, structure %.2f; the target "
                     "against its own mirror image: %s, overlap %.2f, structure %.2f\n",
                     core::GlobalRegistrationMethodName(m), s, t, result.overlap_ratio,
