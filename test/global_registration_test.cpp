@@ -76,6 +76,17 @@ class SyntheticPairTest : public ::testing::Test {
     test::SyntheticScene other(8, 120, 60.0, clear, 3.0);
     unrelated_ = SimulateSubmap(other, source_poses_, 300);
   }
+  // Registers `source` to `target` with the default config and prints why it was judged so.
+  static GlobalRegistrationResult RegisterAndPrint(const char* what, const PointVector& source,
+                                                   const PointVector& target) {
+    const GlobalRegistration registration =
+        GlobalRegistration::Create(GlobalRegistrationConfig()).value();
+    const GlobalRegistrationResult r = registration.Register(source, target);
+    std::cout << what << ": " << r.reason << " (overlap " << r.overlap_ratio << ", structure "
+              << r.structure_overlap_ratio << ")" << std::endl;
+    return r;
+  }
+
   std::vector<Pose3, Eigen::aligned_allocator<Pose3>> target_poses_, source_poses_;
   PointVector target_, source_, unrelated_;
   Pose3 truth_ = Pose3::Identity();
@@ -114,11 +125,7 @@ TEST_F(SyntheticPairTest, RecoversTheSameTransformInReverse) {
 }
 
 TEST_F(SyntheticPairTest, RejectsSubmapsOfDifferentPlaces) {
-  const GlobalRegistration registration =
-      GlobalRegistration::Create(GlobalRegistrationConfig()).value();
-  const GlobalRegistrationResult r = registration.Register(unrelated_, target_);
-  std::cout << "unrelated pair: " << r.reason << " (overlap " << r.overlap_ratio
-            << ", structure " << r.structure_overlap_ratio << ")" << std::endl;
+  const GlobalRegistrationResult r = RegisterAndPrint("unrelated pair", unrelated_, target_);
   EXPECT_FALSE(r.accepted);
   EXPECT_FALSE(r.reason.empty());
 }
@@ -128,12 +135,7 @@ TEST_F(SyntheticPairTest, RejectsSubmapsOfDifferentPlaces) {
 TEST_F(SyntheticPairTest, RejectsTheMirrorImageOfTheTarget) {
   PointVector mirrored = target_;
   for (Eigen::Vector3d& p : mirrored) p.y() = -p.y();
-  const GlobalRegistration registration =
-      GlobalRegistration::Create(GlobalRegistrationConfig()).value();
-  const GlobalRegistrationResult r = registration.Register(source_, mirrored);
-  std::cout << "mirrored pair: " << r.reason << " (overlap " << r.overlap_ratio
-            << ", structure " << r.structure_overlap_ratio << ")" << std::endl;
-  EXPECT_FALSE(r.accepted);
+  EXPECT_FALSE(RegisterAndPrint("mirrored pair", source_, mirrored).accepted);
 }
 
 TEST_F(SyntheticPairTest, YawSearchMethodRunsAndNeverAcceptsAWrongPose) {
