@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/pose_graph.h"
 
 #include <cmath>
+#include <functional>
 #include <random>
 #include <sstream>
 
@@ -38,25 +39,36 @@ Pose3 Perturb(const Pose3& pose, std::mt19937* rng, double sigma_t, double sigma
   return pose * se3::Exp(xi);
 }
 
-// Builds a graph whose initial estimate is dead-reckoned noisy odometry (it drifts), with
-// accurate loops every fifth node (as from revisits) and from the end back to the start.
-PoseGraph BuildGraph(std::mt19937* rng, bool with_loops) {
-  const auto truth = GroundTruth();
+// A chain of odometry edges from node 0 (fixed at truth[0]); `measure(i)` is the measured
+// motion from node i - 1 to node i. The initial estimate is the dead-reckoned chain.
+PoseGraph OdometryChain(const std::vector<Pose3, Eigen::aligned_allocator<Pose3>>& truth,
+                        const std::function<Pose3(int)>& measure, const Information6& info) {
   PoseGraph graph;
   Pose3 estimate = truth[0];
   graph.SetNodePose(0, estimate);
   graph.SetFixed(0, true);
-  for (int i = 1; i < 40; ++i) {
-    const Pose3 measured = Perturb(se3::Between(truth[i - 1], truth[i]), rng, 0.05, 0.01);
+  for (int i = 1; i < static_cast<int>(truth.size()); ++i) {
+    const Pose3 measured = measure(i);
     estimate = estimate * measured;
     graph.SetNodePose(i, estimate);
     PoseGraphEdge e;
     e.from = i - 1;
     e.to = i;
     e.T_from_to = measured;
-    e.information = Info(0.05, 0.01);
+    e.information = info;
     EXPECT_TRUE(graph.AddEdge(e).ok());
   }
+  return graph;
+}
+
+// Builds a graph whose initial estimate is dead-reckoned noisy odometry (it drifts), with
+// accurate loops every fifth node (as from revisits) and from the end back to the start.
+PoseGraph BuildGraph(std::mt19937* rng, bool with_loops) {
+  const auto truth = GroundTruth();
+  PoseGraph graph = OdometryChain(
+      truth,
+      [&](int i) { return Perturb(se3::Between(truth[i - 1], truth[i]), rng, 0.05, 0.01); },
+      Info(0.05, 0.01));
   if (with_loops) {
     std::vector<std::pair<int, int>> loops = {{39, 0}};
     for (int i = 0; i < 40; i += 5) loops.emplace_back(i, (i + 10) % 40);
@@ -184,6 +196,10 @@ TEST(PoseGraph, G2oRoundTripKeepsEverything) {
   wrong.information(0, 4) = wrong.information(4, 0) = 1.0;  // a cross term survives too
   wrong.kind = EdgeKind::kInterLoop;
   ASSERT_TRUE(graph.AddEdge(wrong).ok());
+  Eigen::Matrix3d prior = Eigen::Matrix3d::Identity() * 4e4;
+  prior(0, 1) = prior(1, 0) = 1e3;
+  prior(2, 2) = 0.0;
+  for (NodeId id : {3, 8, 30}) ASSERT_TRUE(graph.SetVerticalPrior(id, prior).ok());
   ASSERT_TRUE(graph.Optimize().ok());
 
   std::stringstream text;
@@ -206,6 +222,88 @@ TEST(PoseGraph, G2oRoundTripKeepsEverything) {
     EXPECT_TRUE(a.T_from_to.isApprox(b.T_from_to, 1e-9));
     EXPECT_TRUE(a.information.isApprox(b.information, 1e-9));
   }
+  ASSERT_EQ(back.value().vertical_priors().size(), 3u);
+  for (const auto& [id, information] : graph.vertical_priors()) {
+    ASSERT_EQ(back.value().vertical_priors().count(id), 1u) << "node " << id;
+    EXPECT_TRUE(back.value().vertical_priors().at(id).isApprox(information, 1e-9));
+  }
+  EXPECT_TRUE(back.value().up().isApprox(graph.up(), 1e-9));
+}
+
+// Route of 30 submaps over 20 m each across rolling terrain (pitch and roll of a few deg).
+std::vector<Pose3, Eigen::aligned_allocator<Pose3>> HillyRoute() {
+  std::vector<Pose3, Eigen::aligned_allocator<Pose3>> poses;
+  double z = 0.0;
+  for (int i = 0; i < 30; ++i) {
+    const double pitch = 0.05 * std::sin(0.4 * i), roll = 0.03 * std::cos(0.3 * i);
+    poses.push_back(se3::FromXyzRpy(20.0 * i, 2.0 * std::sin(0.2 * i), z, roll, pitch, 0.1 * std::sin(0.2 * i)));
+    z -= 20.0 * std::sin(pitch);
+  }
+  return poses;
+}
+
+// Tilt error of a node: angle between the up direction it sees and the true one [deg].
+double TiltErrorDeg(const PoseGraph& graph, NodeId id, const Pose3& truth) {
+  const Eigen::Vector3d seen = graph.NodePose(id).rotation().transpose() * graph.up();
+  const Eigen::Vector3d real = truth.rotation().transpose() * Eigen::Vector3d::UnitZ();
+  return std::acos(std::min(1.0, seen.dot(real))) * 180.0 / M_PI;
+}
+
+TEST(PoseGraph, VerticalPriorsStopTheTiltDriftOfOdometry) {
+  const auto truth = HillyRoute();
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  // Odometry that pitches down 0.15 deg more per link than the truth (LiDAR-only drift).
+  auto build = [&](bool with_priors) {
+    PoseGraph graph = OdometryChain(
+        truth,
+        [&](int i) {
+          return se3::Between(truth[i - 1], truth[i]) *
+                 se3::FromXyzRpy(0, 0, 0, 0, 0.15 * M_PI / 180.0, 0);
+        },
+        Info(0.15, 0.005));
+    for (int i = 0; i < 30 && with_priors; ++i) {
+      // Walls seen from node i: their normals are horizontal in the world; the estimate of
+      // up they give is 0.25 deg off in a random direction.
+      const Eigen::Matrix3d R = truth[i].rotation().transpose();
+      const Eigen::Vector3d error = 0.25 * M_PI / 180.0 * Eigen::Vector3d(n(rng), n(rng), 0.0).normalized();
+      const Eigen::Vector3d up = (R * (Eigen::Vector3d::UnitZ() + error)).normalized();
+      const Eigen::Matrix3d information =
+          (Eigen::Matrix3d::Identity() - up * up.transpose()) / (0.005 * 0.005);
+      EXPECT_TRUE(graph.SetVerticalPrior(i, information).ok());
+    }
+    EXPECT_TRUE(graph.Optimize().ok());
+    return graph;
+  };
+  const PoseGraph drifting = build(false);
+  const PoseGraph levelled = build(true);
+  double worst_drifting = 0.0, worst_levelled = 0.0;
+  for (int i = 0; i < 30; ++i) {
+    worst_drifting = std::max(worst_drifting, TiltErrorDeg(drifting, i, truth[i]));
+    worst_levelled = std::max(worst_levelled, TiltErrorDeg(levelled, i, truth[i]));
+  }
+  EXPECT_GT(worst_drifting, 4.0);  // 29 x 0.15 deg
+  EXPECT_LT(worst_levelled, 0.5);
+  const double height_drifting = std::abs(drifting.NodePose(29).translation().z() - truth[29].translation().z());
+  const double height_levelled = std::abs(levelled.NodePose(29).translation().z() - truth[29].translation().z());
+  EXPECT_GT(height_drifting, 10.0);
+  EXPECT_LT(height_levelled, 0.2 * height_drifting);
+  // The common up direction is the fixed frame's z within the priors' noise.
+  EXPECT_LT(std::acos(std::min(1.0, levelled.up().z())) * 180.0 / M_PI, 0.3);
+}
+
+TEST(PoseGraph, VerticalPriorsAreValidated) {
+  PoseGraph graph;
+  graph.SetNodePose(0, Pose3::Identity());
+  EXPECT_FALSE(graph.SetVerticalPrior(5, Eigen::Matrix3d::Identity()).ok()) << "missing node";
+  EXPECT_FALSE(graph.SetVerticalPrior(0, -Eigen::Matrix3d::Identity()).ok()) << "negative";
+  Eigen::Matrix3d asymmetric = Eigen::Matrix3d::Identity();
+  asymmetric(0, 2) = 3.0;
+  EXPECT_FALSE(graph.SetVerticalPrior(0, asymmetric).ok());
+  ASSERT_TRUE(graph.SetVerticalPrior(0, Eigen::Matrix3d::Identity()).ok());
+  EXPECT_EQ(graph.vertical_priors().size(), 1u);
+  ASSERT_TRUE(graph.SetVerticalPrior(0, Eigen::Matrix3d::Zero()).ok());
+  EXPECT_TRUE(graph.vertical_priors().empty()) << "a zero matrix removes the prior";
 }
 
 TEST(PoseGraph, G2oErrorsNameTheLine) {

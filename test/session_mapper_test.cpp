@@ -1,5 +1,6 @@
 #include "multisession_mapper/core/session_mapper.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -70,6 +71,15 @@ TEST_F(SessionMapperLoop, ClosesTheLoopAndTracksGroundTruth) {
   int odometry_edges = 0;
   for (const PoseGraphEdge& e : r.graph.edges()) odometry_edges += e.kind == EdgeKind::kOdometry;
   EXPECT_EQ(odometry_edges, static_cast<int>(r.submaps.size()) - 1);
+
+  // The boxes' sides are vertical: the submaps get vertical priors, and the graph's up
+  // direction is the true one as seen from the first scan.
+  EXPECT_GE(r.graph.vertical_priors().size(), r.submaps.size() / 2);
+  const Eigen::Vector3d true_up =
+      Truth(r.trajectory.front().stamp_s).rotation().transpose() * Eigen::Vector3d::UnitZ();
+  const double up_error_deg =
+      std::acos(std::min(1.0, r.graph.up().dot(true_up))) * 180.0 / M_PI;
+  EXPECT_LT(up_error_deg, 0.3) << "up " << r.graph.up().transpose();
 }
 
 // The nodelets run the odometry in ScanMatchingNodelet and hand the registered scans to

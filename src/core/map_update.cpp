@@ -7,6 +7,23 @@ NodeId SubmapNodeId(std::size_t session_index, std::uint32_t submap_id) {
   return static_cast<NodeId>(session_index) * 1000000 + submap_id;
 }
 
+Status AddSessionGraph(const PoseGraph& session_graph, std::size_t session_index,
+                       PoseGraph* map_graph) {
+  auto node = [&](NodeId id) { return SubmapNodeId(session_index, static_cast<std::uint32_t>(id)); };
+  for (const PoseGraphEdge& edge : session_graph.edges()) {
+    PoseGraphEdge copy = edge;
+    copy.from = node(edge.from);
+    copy.to = node(edge.to);
+    StatusOr<std::size_t> added = map_graph->AddEdge(copy);
+    if (!added.ok()) return added.status();
+  }
+  for (const auto& [id, information] : session_graph.vertical_priors()) {
+    const Status set = map_graph->SetVerticalPrior(node(id), information);
+    if (!set.ok()) return set;
+  }
+  return Status::Ok();
+}
+
 Status AddFirstSession(const SessionResult& session, const SessionRecord& record,
                        const SessionFiles& files, MapContents* map) {
   if (!map->sessions.empty()) {
@@ -20,13 +37,9 @@ Status AddFirstSession(const SessionResult& session, const SessionRecord& record
     map->graph.SetNodePose(SubmapNodeId(0, submap.id), submap.T_map_submap);
   }
   map->graph.SetFixed(SubmapNodeId(0, session.submaps.front().id), true);
-  for (const PoseGraphEdge& edge : session.graph.edges()) {
-    PoseGraphEdge copy = edge;
-    copy.from = SubmapNodeId(0, static_cast<std::uint32_t>(edge.from));
-    copy.to = SubmapNodeId(0, static_cast<std::uint32_t>(edge.to));
-    StatusOr<std::size_t> added = map->graph.AddEdge(copy);
-    if (!added.ok()) return added.status();
-  }
+  map->graph.SetUp(session.graph.up());  // the first session's frame is the map frame
+  const Status graph = AddSessionGraph(session.graph, 0, &map->graph);
+  if (!graph.ok()) return graph;
   map->trajectories[record.name] = session.trajectory;
   map->odom_trajectories[record.name] = session.odometry;
   map->files["loops/" + record.name + ".csv"] = LoopRecordsToCsv(session.loops);

@@ -78,6 +78,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"pose_graph", "odometry_sigma_translation_m", &s.odometry_sigma_translation_m},
       {"pose_graph", "odometry_sigma_translation_per_m", &s.odometry_sigma_translation_per_m},
       {"pose_graph", "odometry_sigma_rotation_rad", &s.odometry_sigma_rotation_rad},
+      {"pose_graph", "vertical_priors", &s.vertical_structure.enabled},
+      {"pose_graph", "vertical_sigma_rad", &s.vertical_structure.sigma_rad},
       {"place_recognition", "d_alpha_ring_histogram", &p.database.d_alpha_ring_histogram},
       {"place_recognition", "d_alpha_scan_context", &p.database.d_alpha_scan_context},
       {"place_recognition", "log_neighbours", &p.log_neighbours},

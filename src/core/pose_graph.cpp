@@ -8,7 +8,9 @@
 #include <ostream>
 #include <sstream>
 
+#include <Eigen/Eigenvalues>
 #include <ceres/ceres.h>
+#include <ceres/sphere_manifold.h>
 
 #include "multisession_mapper/core/se3.h"
 
@@ -49,6 +51,41 @@ class RelativePoseResidual {
   Eigen::Quaterniond q_meas_;
   Eigen::Matrix<double, 6, 6> sqrt_info_;
 };
+
+// Residual of a vertical prior: the fixed frame's up direction g seen from the node,
+// u = q^-1 g, whitened by the square root of the prior's information (u^T I u = |S u|^2).
+// For the true vertical the walls' normals are perpendicular to u and the residual is ~0.
+class VerticalPriorResidual {
+ public:
+  explicit VerticalPriorResidual(const Eigen::Matrix3d& sqrt_info) : sqrt_info_(sqrt_info) {}
+
+  template <typename T>
+  bool operator()(const T* q_ptr, const T* up_ptr, T* residual_ptr) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(q_ptr);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> up(up_ptr);
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> residual(residual_ptr);
+    residual = sqrt_info_.template cast<T>() * (q.conjugate() * up);
+    return true;
+  }
+
+ private:
+  Eigen::Matrix3d sqrt_info_;
+};
+
+// S with S^T S = information, for a symmetric positive semi-definite 3x3 matrix.
+Eigen::Matrix3d SqrtInformation3(const Eigen::Matrix3d& information) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(information);
+  const Eigen::Vector3d roots = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  return roots.asDiagonal() * solver.eigenvectors().transpose();
+}
+
+bool IsInformation3(const Eigen::Matrix3d& information) {
+  if (!information.allFinite() || !information.isApprox(information.transpose(), 1e-9)) {
+    return information.isZero(0.0);
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(information);
+  return solver.eigenvalues()(0) >= -1e-9 * std::max(1.0, solver.eigenvalues()(2));
+}
 
 Eigen::Matrix<double, 6, 6> SqrtInformation(const Information6& information) {
   // information = L L^T  =>  r^T information r = |L^T r|^2.
@@ -125,6 +162,26 @@ void PoseGraph::SetFixed(NodeId id, bool fixed) {
   }
 }
 
+Status PoseGraph::SetVerticalPrior(NodeId id, const Eigen::Matrix3d& information) {
+  if (!HasNode(id)) {
+    return Status::Error("vertical prior for missing pose graph node " + std::to_string(id));
+  }
+  if (!IsInformation3(information)) {
+    return Status::Error("vertical prior of node " + std::to_string(id) +
+                         " is not symmetric positive semi-definite");
+  }
+  if (information.isZero(0.0)) {
+    vertical_priors_.erase(id);
+  } else {
+    vertical_priors_[id] = 0.5 * (information + information.transpose());
+  }
+  return Status::Ok();
+}
+
+void PoseGraph::SetUp(const Eigen::Vector3d& up) {
+  if (up.allFinite() && up.norm() > 1e-9) up_ = up.normalized();
+}
+
 StatusOr<std::size_t> PoseGraph::AddEdge(const PoseGraphEdge& edge) {
   if (!HasNode(edge.from) || !HasNode(edge.to)) {
     return Status::Error("pose graph edge " + std::to_string(edge.from) + " -> " +
@@ -164,7 +221,7 @@ StatusOr<PoseGraphSummary> PoseGraph::Optimize() {
   Status valid = config_.Validate();
   if (!valid.ok()) return valid;
   PoseGraphSummary summary;
-  if (edges_.empty()) {
+  if (edges_.empty() && vertical_priors_.empty()) {
     summary.converged = true;
     return summary;
   }
@@ -203,13 +260,25 @@ StatusOr<PoseGraphSummary> PoseGraph::Optimize() {
       double* b = params[edge.to].data();
       problem.AddResidualBlock(cost, loss, a, a + 3, b, b + 3);
     }
+    // One up direction for the whole graph; each prior ties its node's tilt to it.
+    std::array<double, 3> up = {up_.x(), up_.y(), up_.z()};
+    for (const auto& [id, information] : vertical_priors_) {
+      const auto node = params.find(id);
+      if (node == params.end()) continue;
+      auto* cost = new ceres::AutoDiffCostFunction<VerticalPriorResidual, 3, 4, 3>(
+          new VerticalPriorResidual(SqrtInformation3(information)));
+      problem.AddResidualBlock(cost, new ceres::CauchyLoss(config_.vertical_kernel_scale),
+                               node->second.data() + 3, up.data());
+    }
+    if (problem.HasParameterBlock(up.data())) {
+      problem.SetManifold(up.data(), new ceres::SphereManifold<3>());
+    }
     for (auto& [id, p] : params) {
-      if (!problem.HasParameterBlock(p.data())) continue;
+      const bool fixed = fixed_.count(id) > 0;
+      if (problem.HasParameterBlock(p.data()) && fixed) problem.SetParameterBlockConstant(p.data());
+      if (!problem.HasParameterBlock(p.data() + 3)) continue;  // a node without edges / prior
       problem.SetManifold(p.data() + 3, new ceres::EigenQuaternionManifold());
-      if (fixed_.count(id)) {
-        problem.SetParameterBlockConstant(p.data());
-        problem.SetParameterBlockConstant(p.data() + 3);
-      }
+      if (fixed) problem.SetParameterBlockConstant(p.data() + 3);
     }
     ceres::Solver::Options options;
     options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -227,6 +296,7 @@ StatusOr<PoseGraphSummary> PoseGraph::Optimize() {
       nodes_[id] = se3::FromTranslationQuaternion(Eigen::Vector3d(p[0], p[1], p[2]),
                                                   Eigen::Quaterniond(p[6], p[3], p[4], p[5]));
     }
+    up_ = Eigen::Vector3d(up[0], up[1], up[2]).normalized();
     if (round == 0) summary.initial_cost = ceres_summary.initial_cost;
     summary.final_cost = ceres_summary.final_cost;
     summary.iterations += static_cast<int>(ceres_summary.iterations.size());
@@ -273,6 +343,17 @@ Status PoseGraph::WriteG2o(std::ostream& out) const {
   for (NodeId id : fixed_) {
     if (HasNode(id)) out << "FIX " << id << '\n';
   }
+  // Vertical priors and the up direction: comment lines, ignored by g2o.
+  if (!vertical_priors_.empty()) {
+    out << "# MSM_UP " << up_.x() << ' ' << up_.y() << ' ' << up_.z() << '\n';
+  }
+  for (const auto& [id, information] : vertical_priors_) {
+    out << "# MSM_VERTICAL_PRIOR " << id;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = r; c < 3; ++c) out << ' ' << information(r, c);
+    }
+    out << '\n';
+  }
   for (const PoseGraphEdge& edge : edges_) {
     out << "# MSM_EDGE_KIND " << EdgeKindName(edge.kind) << '\n';
     if (!edge.enabled) out << "#DISABLED ";
@@ -305,6 +386,32 @@ StatusOr<PoseGraph> PoseGraph::ReadG2o(std::istream& in, const std::string& sour
       StatusOr<EdgeKind> kind = EdgeKindFromName(line.substr(16));
       if (!kind.ok()) return error(kind.status().message());
       pending_kind = kind.value();
+      continue;
+    }
+    if (line.rfind("# MSM_UP ", 0) == 0) {
+      std::istringstream fields(line.substr(9));
+      Eigen::Vector3d up;
+      if (!(fields >> up.x() >> up.y() >> up.z()) || !up.allFinite() || up.norm() < 1e-6) {
+        return error("malformed MSM_UP");
+      }
+      graph.SetUp(up);
+      continue;
+    }
+    if (line.rfind("# MSM_VERTICAL_PRIOR ", 0) == 0) {
+      std::istringstream fields(line.substr(21));
+      NodeId id;
+      Eigen::Matrix3d information;
+      if (!(fields >> id)) return error("malformed MSM_VERTICAL_PRIOR");
+      for (int r = 0; r < 3; ++r) {
+        for (int c = r; c < 3; ++c) {
+          if (!(fields >> information(r, c))) {
+            return error("MSM_VERTICAL_PRIOR needs a node id and 6 information values");
+          }
+          information(c, r) = information(r, c);
+        }
+      }
+      const Status set = graph.SetVerticalPrior(id, information);
+      if (!set.ok()) return error(set.message());
       continue;
     }
     if (line.rfind("#DISABLED ", 0) == 0) {

@@ -29,7 +29,7 @@ Status IntraLoopConfig::Validate() const {
 
 Status SessionMapperConfig::Validate() const {
   for (const Status& s : {odometry.Validate(), submaps.Validate(), intra_loops.Validate(),
-                          pose_graph.Validate()}) {
+                          pose_graph.Validate(), vertical_structure.Validate()}) {
     if (!s.ok()) return s;
   }
   if (!(odometry_sigma_translation_m > 0.0) || !(odometry_sigma_translation_per_m >= 0.0) ||
@@ -101,6 +101,9 @@ struct SessionMapper::State {
                                            config.odometry_sigma_rotation_rad));
       graph.AddEdge(edge);
     }
+    const VerticalEvidence vertical =
+        EstimateVerticalEvidence(submap.points, config.vertical_structure);
+    if (vertical.valid) graph.SetVerticalPrior(id, vertical.information);
     submap.T_map_submap = estimate;
     submaps.push_back(std::move(submap));
     SearchIntraLoops(id);

@@ -242,13 +242,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   for (std::size_t c = 0; c < session.submaps.size(); ++c) {
     graph.SetNodePose(current_node(c), m.T_map_session * session.submaps[c].T_map_submap);
   }
-  for (const PoseGraphEdge& edge : session.graph.edges()) {
-    PoseGraphEdge copy = edge;
-    copy.from = SubmapNodeId(new_index, static_cast<std::uint32_t>(edge.from));
-    copy.to = SubmapNodeId(new_index, static_cast<std::uint32_t>(edge.to));
-    StatusOr<std::size_t> added = graph.AddEdge(copy);
-    if (!added.ok()) return added.status();
-  }
+  const Status session_graph = AddSessionGraph(session.graph, new_index, &graph);
+  if (!session_graph.ok()) return session_graph;
   LoopRecords records = m.records;
   std::vector<Pair> pairs;
   std::map<std::size_t, std::size_t> edge_to_record;  // graph edge index -> records index

@@ -51,7 +51,9 @@ namespace ros_params {
   F(pose_graph_loop_outlier_chi2, s.pose_graph.loop_outlier_chi2)                           \
   F(pose_graph_odometry_sigma_translation_m, s.odometry_sigma_translation_m)                \
   F(pose_graph_odometry_sigma_translation_per_m, s.odometry_sigma_translation_per_m)        \
-  F(pose_graph_odometry_sigma_rotation_rad, s.odometry_sigma_rotation_rad)
+  F(pose_graph_odometry_sigma_rotation_rad, s.odometry_sigma_rotation_rad)                  \
+  F(pose_graph_vertical_priors, s.vertical_structure.enabled)                               \
+  F(pose_graph_vertical_sigma_rad, s.vertical_structure.sigma_rad)
 
 #define MSM_PLACE_RECOGNITION_FIELDS(F)                                                  \
   F(place_recognition_d_alpha_ring_histogram, p.database.d_alpha_ring_histogram)         \

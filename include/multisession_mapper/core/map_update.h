@@ -15,6 +15,11 @@ namespace core {
 /// Node id of a submap in the map's pose graph: session index * 1e6 + submap id.
 NodeId SubmapNodeId(std::size_t session_index, std::uint32_t submap_id);
 
+/// Copies a session's edges and vertical priors (node id = submap id) into the map graph,
+/// renumbered with SubmapNodeId(session_index, .). The nodes must already be in `map_graph`.
+Status AddSessionGraph(const PoseGraph& session_graph, std::size_t session_index,
+                       PoseGraph* map_graph);
+
 /// Files of a session that other modules produce (CSV and YAML text).
 struct SessionFiles {
   std::string timing_yaml;

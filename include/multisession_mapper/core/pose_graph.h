@@ -5,7 +5,11 @@
 // The kernel scale is annealed from wide to narrow (graduated non-convexity), and loop edges
 // whose whitened error stays above a chi-square gate are then switched off one at a time with a
 // new solve after each, so a single wrong loop cannot wreck the graph.
-// Also reads and writes the g2o text format (VERTEX_SE3:QUAT / EDGE_SE3:QUAT).
+// Optional vertical priors (see vertical_structure.h): the graph then also estimates the up
+// direction of the fixed frame and pulls each such node's tilt towards it, which stops the
+// roll / pitch drift of LiDAR-only odometry between loops.
+// Also reads and writes the g2o text format (VERTEX_SE3:QUAT / EDGE_SE3:QUAT; the vertical
+// priors and the up direction in comment lines that g2o ignores).
 #pragma once
 
 #include <cstdint>
@@ -57,6 +61,9 @@ struct PoseGraphConfig {
   /// After the outliers are out, solve once more without the kernel: the kernel is for
   /// finding outliers; the inliers' plain least-squares optimum is the better estimate.
   bool final_least_squares = true;
+  /// Scale of the Cauchy kernel on vertical priors (whitened units, 3 residuals): a submap
+  /// whose "walls" are not vertical (a sloped roof, a leaning fence) loses its pull.
+  double vertical_kernel_scale = 2.0;
   int max_iterations = 100;
   double function_tolerance = 1e-10;
   int num_threads = 1;
@@ -85,6 +92,21 @@ class PoseGraph {
   /// Fails when a node is missing, the pose is invalid or the information matrix is not
   /// symmetric positive definite. Returns the edge index.
   StatusOr<std::size_t> AddEdge(const PoseGraphEdge& edge);
+
+  /// Prior on the up direction of a node: `information` [rad^-2] on the unit up vector in the
+  /// node's frame (VerticalEvidence::information; symmetric positive semi-definite). A zero
+  /// matrix removes the prior. Fails for a missing node or an invalid matrix.
+  Status SetVerticalPrior(NodeId id, const Eigen::Matrix3d& information);
+  const std::map<NodeId, Eigen::Matrix3d, std::less<NodeId>,
+                 Eigen::aligned_allocator<std::pair<const NodeId, Eigen::Matrix3d>>>&
+  vertical_priors() const {
+    return vertical_priors_;
+  }
+  /// Up direction of the fixed nodes' frame (unit), estimated by Optimize when there are
+  /// vertical priors; the frame's z axis before.
+  const Eigen::Vector3d& up() const { return up_; }
+  /// Starting value of the up direction (normalised; ignored unless finite and non-zero).
+  void SetUp(const Eigen::Vector3d& up);
 
   /// Solves the graph; needs at least one fixed node in every connected component with edges.
   StatusOr<PoseGraphSummary> Optimize();
@@ -120,6 +142,10 @@ class PoseGraph {
       nodes_;
   std::set<NodeId> fixed_;
   std::vector<PoseGraphEdge, Eigen::aligned_allocator<PoseGraphEdge>> edges_;
+  std::map<NodeId, Eigen::Matrix3d, std::less<NodeId>,
+           Eigen::aligned_allocator<std::pair<const NodeId, Eigen::Matrix3d>>>
+      vertical_priors_;
+  Eigen::Vector3d up_ = Eigen::Vector3d::UnitZ();
 };
 
 /// Name used in files and logs: "odometry", "intra_loop", "inter_loop".

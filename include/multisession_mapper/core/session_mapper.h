@@ -18,6 +18,7 @@
 #include "multisession_mapper/core/submap.h"
 #include "multisession_mapper/core/submap_builder.h"
 #include "multisession_mapper/core/submap_registration.h"
+#include "multisession_mapper/core/vertical_structure.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -47,6 +48,8 @@ struct SessionMapperConfig {
   SubmapBuilderConfig submaps;
   IntraLoopConfig intra_loops;
   PoseGraphConfig pose_graph;
+  /// Vertical prior of every finished submap from its walls (vertical_structure.h).
+  VerticalStructureConfig vertical_structure;
   /// Odometry edge noise between consecutive submaps: sigma_t = base + per_m * distance [m],
   /// sigma_r [rad].
   double odometry_sigma_translation_m = 0.05;

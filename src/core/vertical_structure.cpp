@@ -1,0 +1,130 @@
+#include "multisession_mapper/core/vertical_structure.h"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "multisession_mapper/core/point_index.h"
+#include "multisession_mapper/core/voxel_downsample.h"
+
+namespace multisession_mapper {
+namespace core {
+namespace {
+
+// Up = the direction least seen by the normals: eigenvector of the smallest eigenvalue of
+// sum n n^T, signed to point along the frame's z.
+Eigen::Vector3d LeastSeenDirection(const Eigen::Matrix3d& scatter) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
+  Eigen::Vector3d up = solver.eigenvectors().col(0).normalized();
+  return up.z() < 0.0 ? Eigen::Vector3d(-up) : up;
+}
+
+Eigen::Matrix3d Scatter(const PointVector& normals, const Eigen::Vector3d& up, double max_cos) {
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& n : normals) {
+    if (std::abs(n.dot(up)) <= max_cos) scatter.noalias() += n * n.transpose();
+  }
+  return scatter;
+}
+
+int CountWithin(const PointVector& normals, const Eigen::Vector3d& up, double max_cos) {
+  int count = 0;
+  for (const Eigen::Vector3d& n : normals) count += std::abs(n.dot(up)) <= max_cos;
+  return count;
+}
+
+}  // namespace
+
+Status VerticalStructureConfig::Validate() const {
+  Status status = plane.Validate();
+  if (!status.ok()) return status;
+  if (!std::isfinite(min_height_m)) {
+    return Status::Error("vertical_structure.min_height_m must be finite");
+  }
+  if (!std::isfinite(voxel_size_m) || voxel_size_m <= 0.0) {
+    return Status::Error("vertical_structure.voxel_size_m must be > 0, got " +
+                         std::to_string(voxel_size_m));
+  }
+  if (neighbours < 3) {
+    return Status::Error("vertical_structure.neighbours must be >= 3, got " +
+                         std::to_string(neighbours));
+  }
+  if (!std::isfinite(max_neighbour_distance_m) || max_neighbour_distance_m <= 0.0) {
+    return Status::Error("vertical_structure.max_neighbour_distance_m must be > 0");
+  }
+  if (!(max_wall_tilt_rad > 0.0 && max_wall_tilt_rad < M_PI / 2) ||
+      !(inlier_tilt_rad > 0.0 && inlier_tilt_rad < M_PI / 2)) {
+    return Status::Error(
+        "vertical_structure.max_wall_tilt_rad / inlier_tilt_rad must be in (0, pi/2)");
+  }
+  if (min_wall_points < 3) {
+    return Status::Error("vertical_structure.min_wall_points must be >= 3, got " +
+                         std::to_string(min_wall_points));
+  }
+  if (!std::isfinite(sigma_rad) || sigma_rad <= 0.0) {
+    return Status::Error("vertical_structure.sigma_rad must be > 0, got " +
+                         std::to_string(sigma_rad));
+  }
+  return Status::Ok();
+}
+
+VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
+                                          const VerticalStructureConfig& config) {
+  VerticalEvidence evidence;
+  if (!config.enabled || points.size() < 3) return evidence;
+  PointVector high;
+  for (const Eigen::Vector3d& p : points) {
+    if (p.z() > config.min_height_m) high.push_back(p);
+  }
+  StatusOr<PointIndex> index = PointIndex::Create(VoxelDownsample(high, config.voxel_size_m));
+  if (!index.ok()) return evidence;  // a non-finite point: no evidence rather than a bad one
+  const PointVector& thinned = index.value().points();
+
+  // Normals of planar patches that are roughly vertical in the submap frame.
+  const double candidate_cos = std::sin(config.max_wall_tilt_rad);
+  PointVector walls;
+  std::vector<std::uint32_t> neighbours;
+  for (const Eigen::Vector3d& p : thinned) {
+    index.value().Nearest(p, static_cast<std::size_t>(config.neighbours),
+                          config.max_neighbour_distance_m, &neighbours);
+    CovarianceAccumulator accumulator;
+    for (std::uint32_t i : neighbours) accumulator.Add(thinned[i] - p);  // centred: precise
+    Eigen::Vector3d normal;
+    if (!accumulator.Normal(config.plane, &normal)) continue;
+    if (std::abs(normal.z()) <= candidate_cos) walls.push_back(normal);
+  }
+  if (static_cast<int>(walls.size()) < config.min_wall_points) return evidence;
+
+  // Estimate, drop the walls that are not vertical by that estimate, estimate again (twice).
+  const double inlier_cos = std::sin(config.inlier_tilt_rad);
+  Eigen::Vector3d up = LeastSeenDirection(Scatter(walls, Eigen::Vector3d::UnitZ(), candidate_cos));
+  for (int round = 0; round < 2; ++round) up = LeastSeenDirection(Scatter(walls, up, inlier_cos));
+  const int inliers = CountWithin(walls, up, inlier_cos);
+  evidence.wall_points = inliers;
+  if (inliers < config.min_wall_points) return evidence;
+
+  // Information: the scatter's eigen-structure, scaled so that its largest eigenvalue is
+  // 1 / sigma^2. The eigenvalue along up itself (~0) is dropped so that it carries nothing.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(Scatter(walls, up, inlier_cos));
+  const Eigen::Vector3d values = solver.eigenvalues();  // ascending
+  if (!(values(2) > 0.0)) return evidence;
+  const double scale = 1.0 / (config.sigma_rad * config.sigma_rad * values(2));
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  for (int k = 1; k < 3; ++k) {
+    const Eigen::Vector3d v = solver.eigenvectors().col(k);
+    information.noalias() += scale * values(k) * v * v.transpose();
+  }
+  evidence.valid = information.allFinite();
+  if (!evidence.valid) return evidence;
+  evidence.up = solver.eigenvectors().col(0).z() < 0.0
+                    ? Eigen::Vector3d(-solver.eigenvectors().col(0).normalized())
+                    : Eigen::Vector3d(solver.eigenvectors().col(0).normalized());
+  evidence.information = information;
+  evidence.conditioning = values(1) / values(2);
+  return evidence;
+}
+
+}  // namespace core
+}  // namespace multisession_mapper
