@@ -33,11 +33,14 @@ struct VerticalStructureConfig {
   /// submaps keep enough walls).
   double min_height_m = 0.5;
   /// The submap's points are thinned to this voxel before the normals [m]. Neighbours per
-  /// normal, and their largest distance from the point [m]. 0.4 m / 20 against 0.3 m / 30:
-  /// 2.6x faster (68 against 178 ms per `campus` submap median, loaded machine), weighted
-  /// error on the true points 0.07 / 0.16 deg median / p90 against 0.08 / 0.15 deg.
-  double voxel_size_m = 0.4;
-  int neighbours = 20;
+  /// normal, and their largest distance from the point [m]. 0.4 m / 20 would be 2.6x faster
+  /// (68 against 178 ms per `campus` submap median on a loaded machine; the submap thread
+  /// runs it once per ~12 s of data) with the same error on the true points (weighted
+  /// 0.07 / 0.16 deg median / p90 against 0.08 / 0.15 deg), but through the whole 3-session
+  /// pipeline it was worse on both seeds: `campus` ATE 0.41 / 0.35 / 0.87 m against
+  /// 0.29 / 0.25 / 0.78 m (seed 1), 0.62 / 0.55 / 0.71 m against 0.55 / 0.53 / 0.61 m (seed 2).
+  double voxel_size_m = 0.3;
+  int neighbours = 30;
   double max_neighbour_distance_m = 1.5;
   /// Planarity of a wall patch (eigenvalue ratios of its covariance, see LocalPlaneCriteria).
   LocalPlaneCriteria plane{10, 0.05, 0.2, 0.1};
