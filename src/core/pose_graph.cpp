@@ -81,7 +81,7 @@ Eigen::Matrix3d SqrtInformation3(const Eigen::Matrix3d& information) {
 
 bool IsInformation3(const Eigen::Matrix3d& information) {
   if (!information.allFinite() || !information.isApprox(information.transpose(), 1e-9)) {
-    return information.isZero(0.0);
+    return false;
   }
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(information);
   return solver.eigenvalues()(0) >= -1e-9 * std::max(1.0, solver.eigenvalues()(2));

@@ -21,18 +21,20 @@ Eigen::Vector3d LeastSeenDirection(const Eigen::Matrix3d& scatter) {
   return up.z() < 0.0 ? Eigen::Vector3d(-up) : up;
 }
 
-Eigen::Matrix3d Scatter(const PointVector& normals, const Eigen::Vector3d& up, double max_cos) {
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+// Sum of n n^T over the normals within max_cos of perpendicular to `up`, and their number.
+struct Scatter {
+  Eigen::Matrix3d matrix = Eigen::Matrix3d::Zero();
+  int count = 0;
+};
+
+Scatter WallScatter(const PointVector& normals, const Eigen::Vector3d& up, double max_cos) {
+  Scatter scatter;
   for (const Eigen::Vector3d& n : normals) {
-    if (std::abs(n.dot(up)) <= max_cos) scatter.noalias() += n * n.transpose();
+    if (std::abs(n.dot(up)) > max_cos) continue;
+    scatter.matrix.noalias() += n * n.transpose();
+    ++scatter.count;
   }
   return scatter;
-}
-
-int CountWithin(const PointVector& normals, const Eigen::Vector3d& up, double max_cos) {
-  int count = 0;
-  for (const Eigen::Vector3d& n : normals) count += std::abs(n.dot(up)) <= max_cos;
-  return count;
 }
 
 }  // namespace
@@ -99,15 +101,18 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
 
   // Estimate, drop the walls that are not vertical by that estimate, estimate again (twice).
   const double inlier_cos = std::sin(config.inlier_tilt_rad);
-  Eigen::Vector3d up = LeastSeenDirection(Scatter(walls, Eigen::Vector3d::UnitZ(), candidate_cos));
-  for (int round = 0; round < 2; ++round) up = LeastSeenDirection(Scatter(walls, up, inlier_cos));
-  const int inliers = CountWithin(walls, up, inlier_cos);
-  evidence.wall_points = inliers;
-  if (inliers < config.min_wall_points) return evidence;
+  Eigen::Vector3d up =
+      LeastSeenDirection(WallScatter(walls, Eigen::Vector3d::UnitZ(), candidate_cos).matrix);
+  for (int round = 0; round < 2; ++round) {
+    up = LeastSeenDirection(WallScatter(walls, up, inlier_cos).matrix);
+  }
+  const Scatter inliers = WallScatter(walls, up, inlier_cos);
+  evidence.wall_points = inliers.count;
+  if (inliers.count < config.min_wall_points) return evidence;
 
   // Information: the scatter's eigen-structure, scaled so that its largest eigenvalue is
   // 1 / sigma^2. The eigenvalue along up itself (~0) is dropped so that it carries nothing.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(Scatter(walls, up, inlier_cos));
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(inliers.matrix);
   const Eigen::Vector3d values = solver.eigenvalues();  // ascending
   if (!(values(2) > 0.0)) return evidence;
   const double scale = 1.0 / (config.sigma_rad * config.sigma_rad * values(2));
@@ -118,9 +123,7 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
   }
   evidence.valid = information.allFinite();
   if (!evidence.valid) return evidence;
-  evidence.up = solver.eigenvectors().col(0).z() < 0.0
-                    ? Eigen::Vector3d(-solver.eigenvectors().col(0).normalized())
-                    : Eigen::Vector3d(solver.eigenvectors().col(0).normalized());
+  evidence.up = LeastSeenDirection(inliers.matrix);
   evidence.information = information;
   evidence.conditioning = values(1) / values(2);
   return evidence;
