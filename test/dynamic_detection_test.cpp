@@ -300,6 +300,66 @@ TEST(DynamicDetectionTest, PorousCanopyIsNotDynamicWithoutTheHeightGuard) {
   EXPECT_GT(canopy_weak, 10);
 }
 
+// A far parked car is crossed by the other session's rays mostly low, under its roof (rays to
+// the ground and walls behind it), not through the voxels of the surface that its own session
+// saw. Hand-made submaps: the history saw only a roof (2 x 2 m at 1.4 m, from a high sensor)
+// and the ground around it; the current session, with a low sensor, saw the ground under the
+// roof and a low wall behind it, through the place under the roof.
+TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBelowIt) {
+  auto grid = [](double x0, double x1, double y0, double y1, double z, bool skip_roof,
+                 PointVector* out) {
+    for (double x = x0; x <= x1 + 1e-9; x += 0.2) {
+      for (double y = y0; y <= y1 + 1e-9; y += 0.2) {
+        if (skip_roof && x > 6.9 && x < 9.1 && y > -1.1 && y < 1.1) continue;
+        out->emplace_back(x, y, z);
+      }
+    }
+  };
+  auto with_origins = [](double z, Submap* submap) {
+    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.5) {
+      SubmapScanRecord record;
+      record.T_submap_sensor = Pose3(Eigen::Translation3d(0.0, y, z));
+      submap->scans.push_back(record);
+    }
+  };
+  auto wall = [](PointVector* out) {  // a 1 m wall behind the roof, seen by both sessions
+    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
+      for (double z = 0.2; z <= 1.0 + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
+    }
+  };
+  Submap history, current;
+  grid(-2.0, 11.8, -6.0, 6.0, 0.0, true, &history.points);  // ground, hidden under the roof
+  wall(&history.points);
+  const std::size_t roof_begin = history.points.size();
+  grid(7.0, 9.0, -1.0, 1.0, 1.4, false, &history.points);
+  const std::size_t roof_points = history.points.size() - roof_begin;
+  with_origins(3.0, &history);
+  grid(-2.0, 11.8, -6.0, 6.0, 0.0, false, &current.points);  // ground, also under the roof
+  wall(&current.points);
+  with_origins(1.0, &current);
+
+  auto roof_found = [&](const DynamicDetectionConfig& config) {
+    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
+    EXPECT_TRUE(detector.ok());
+    StatusOr<DynamicDetectionResult> result =
+        detector.value().Detect(history, current, Pose3::Identity());
+    EXPECT_TRUE(result.ok());
+    int roof = 0, other = 0;
+    for (std::uint32_t i : result.value().history_dynamic) (i >= roof_begin ? roof : other)++;
+    EXPECT_EQ(other, 0);
+    EXPECT_TRUE(result.value().current_dynamic.empty());
+    return roof;
+  };
+  const int with_columns = roof_found(DynamicDetectionConfig());
+  DynamicDetectionConfig voxel_only;
+  voxel_only.free_column_depth_m = 0.0;
+  const int without = roof_found(voxel_only);
+  std::printf("roof points %zu: dynamic %d with free columns, %d with the voxel test only\n",
+              roof_points, with_columns, without);
+  EXPECT_GE(with_columns, 0.9 * roof_points);
+  EXPECT_EQ(without, 0);  // no ray of the current session passes through the roof's voxels
+}
+
 TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   DynamicDetectionConfig config;
   config.voxel_size_m = 0.0;
@@ -315,6 +375,12 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.min_passing_rays = 0;
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config = DynamicDetectionConfig();
+  config.free_column_depth_m = -1.0;
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config = DynamicDetectionConfig();
+  config.column_clearance_m = std::nan("");
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
 
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());

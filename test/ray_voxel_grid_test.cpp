@@ -31,6 +31,9 @@ TEST(RayVoxelGridTest, TouchAllocatesAndFindSeesTheSameCell) {
   EXPECT_EQ(g.Find(key - Eigen::Vector3i(1, 0, 0))->flags, 0);  // untouched cell
   EXPECT_EQ(g.Touch(Eigen::Vector3i(-1, 0, 0)), nullptr);
   EXPECT_FALSE(g.Contains(Eigen::Vector3d(11.0, 0.0, 0.0)));
+  // The centre of the voxel: 1.05 lies in [1.0, 1.2), -3.3 in [-3.4, -3.2), 0.5 in [0.4, 0.6).
+  EXPECT_TRUE(g.CentreOf(key).isApprox(Eigen::Vector3d(1.1, -3.3, 0.5), 1e-9));
+  EXPECT_EQ(g.KeyOf(g.CentreOf(key + Eigen::Vector3i(0, 0, -3))), key + Eigen::Vector3i(0, 0, -3));
 }
 
 // Touches one cell in every block so that the traversal visits every voxel.

@@ -203,18 +203,34 @@ class PairDetection {
     if (!coarse.ok()) return coarse.status();
     coarse_ = std::make_unique<RayVoxelGrid>(std::move(coarse.value()));
     for (int s = 0; s < 2; ++s) {
+      for (const Eigen::Vector3d& p : sides_[s].points) {
+        grid_->Touch(grid_->KeyOf(p))->flags |= kOccupied[s];
+      }
+    }
+    for (int s = 0; s < 2; ++s) {
       const Side& side = sides_[s];
       for (std::size_t i = 0; i < side.points.size(); ++i) {
-        RayVoxelGrid::Cell* cell = grid_->Touch(grid_->KeyOf(side.points[i]));
-        cell->flags |= kOccupied[s];
         // Passing rays are counted where the other session may have something the voxel's
         // own session did not see: the difference set and points without a close partner,
         // above the ground (rays cannot see through the ground; mending needs no count there).
-        if (side.height_m[i] >= config_.ground_tolerance_m &&
-            (!side.common[i] || side.nearest_other_m[i] > config_.mending_distance_m)) {
-          cell->flags |= kQueried[s];
-          coarse_->Touch(coarse_->KeyOf(side.points[i]))->flags |= kQueried[s];
+        if (side.height_m[i] < config_.ground_tolerance_m ||
+            (side.common[i] && side.nearest_other_m[i] <= config_.mending_distance_m)) {
+          continue;
         }
+        auto query = [&](const Eigen::Vector3i& key, RayVoxelGrid::Cell* cell) {
+          cell->flags |= kQueried[s];
+          coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= kQueried[s];
+        };
+        const Eigen::Vector3i key = grid_->KeyOf(side.points[i]);
+        query(key, grid_->Find(key));
+        // The free column below (only for points that can become dynamic).
+        if (side.common[i]) continue;
+        ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
+          RayVoxelGrid::Cell* cell = grid_->Touch(key);
+          if (cell == nullptr || (cell->flags & kOccupied[s])) return false;
+          query(key, cell);
+          return true;
+        });
       }
     }
     for (int s = 0; s < 2; ++s) CastSide(s);
@@ -241,7 +257,14 @@ class PairDetection {
       if (support > config_.max_support_points) continue;
       state[i] = 1;
       const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(side.points[i]));
-      if (cell != nullptr && cell->count[other] >= config_.min_passing_rays) state[i] = 2;
+      int passing = cell != nullptr ? cell->count[other] : 0;
+      ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
+        const RayVoxelGrid::Cell* below = grid_->Find(key);
+        if (below == nullptr || (below->flags & kOccupied[s])) return false;
+        passing += below->count[other];
+        return passing < config_.min_passing_rays;
+      });
+      if (passing >= config_.min_passing_rays) state[i] = 2;
     }
     // Grow clusters from the coarse points over eligible points.
     std::vector<std::uint8_t> visited(n, 0);
@@ -290,6 +313,22 @@ class PairDetection {
   }
 
  private:
+  // Calls visit(key) for the voxels below the voxel of point i of side s, one after the other
+  // down to column_clearance_m above its local ground and at most free_column_depth_m deep,
+  // while visit returns true.
+  template <typename Visit>
+  void ForFreeColumn(int s, std::size_t i, Visit visit) const {
+    const Side& side = sides_[s];
+    const double depth_m = std::min(config_.free_column_depth_m,
+                                    side.height_m[i] - config_.column_clearance_m);
+    const int voxels = static_cast<int>(std::floor(depth_m / config_.voxel_size_m));
+    Eigen::Vector3i key = grid_->KeyOf(side.points[i]);
+    for (int k = 0; k < voxels; ++k) {
+      --key.z();
+      if (!visit(key)) return;
+    }
+  }
+
   // Normal of the point's voxel (edge normal_voxel_m) from all points of its submap in it:
   // one covariance per voxel instead of a neighbour search per point. A voxel that holds
   // foliage is not planar; a point farther than grow_radius_m / 3 from its voxel's plane
@@ -466,6 +505,11 @@ Status DynamicDetectionConfig::Validate() const {
   if (!std::isfinite(grow_max_normal_angle_rad) || grow_max_normal_angle_rad < 0.0 ||
       grow_max_normal_angle_rad > M_PI / 2) {
     return Status::Error("dynamic_detection.grow_max_normal_angle_rad must be in [0, pi/2]");
+  }
+  if (!std::isfinite(free_column_depth_m) || free_column_depth_m < 0.0 ||
+      !std::isfinite(column_clearance_m) || column_clearance_m < 0.0) {
+    return Status::Error(
+        "dynamic_detection.free_column_depth_m and column_clearance_m must be >= 0");
   }
   if (!std::isfinite(own_ground_max_gap_m) || own_ground_max_gap_m < 0.0) {
     return Status::Error("dynamic_detection.own_ground_max_gap_m must be >= 0");

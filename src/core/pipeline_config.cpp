@@ -114,6 +114,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "grow_radius_m", &m.dynamics.grow_radius_m},
       {"low_dynamics", "grow_max_normal_angle_rad", &m.dynamics.grow_max_normal_angle_rad},
       {"low_dynamics", "voxel_size_m", &m.dynamics.voxel_size_m},
+      {"low_dynamics", "free_column_depth_m", &m.dynamics.free_column_depth_m},
+      {"low_dynamics", "column_clearance_m", &m.dynamics.column_clearance_m},
       {"low_dynamics", "height_guard_enabled", &m.dynamics.height_guard_enabled},
       {"low_dynamics", "height_guard_m", &m.dynamics.height_guard_m},
       {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},

@@ -44,6 +44,10 @@ Eigen::Vector3i RayVoxelGrid::KeyOf(const Eigen::Vector3d& p) const {
                          static_cast<int>(std::floor(g.z())));
 }
 
+Eigen::Vector3d RayVoxelGrid::CentreOf(const Eigen::Vector3i& key) const {
+  return origin_ + (key.cast<double>() + Eigen::Vector3d::Constant(0.5)) / inv_voxel_size_;
+}
+
 bool RayVoxelGrid::ContainsKey(const Eigen::Vector3i& key) const {
   return (key.array() >= 0).all() && (key.array() < dims_.array()).all();
 }

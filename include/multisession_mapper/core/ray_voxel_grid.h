@@ -41,6 +41,8 @@ class RayVoxelGrid {
   bool Contains(const Eigen::Vector3d& p) const;
   /// Voxel coordinates of `p` (grid-local, may be outside the grid for outside points).
   Eigen::Vector3i KeyOf(const Eigen::Vector3d& p) const;
+  /// Centre of the voxel with coordinates `key` [m].
+  Eigen::Vector3d CentreOf(const Eigen::Vector3i& key) const;
   bool ContainsKey(const Eigen::Vector3i& key) const;
   /// The cell, allocating its block when absent; null outside the grid. Allocation may move
   /// the blocks: cell pointers are valid until the next Touch().
