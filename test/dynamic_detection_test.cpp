@@ -360,6 +360,63 @@ TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBel
   EXPECT_EQ(without, 0);  // no ray of the current session passes through the roof's voxels
 }
 
+// A truck that left: its side (0.4-3.2 m high, facing the road) was seen through by the other
+// session only low, under 1 m; above the 2 m height guard its points are no seeds but belong
+// to the object grown from below, up to guard_object_height_m.
+TEST(DynamicDetectionTest, TallObjectIsRemovedAboveTheGuardUpToTheObjectHeight) {
+  auto with_origins = [](double z, Submap* submap) {
+    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.5) {
+      SubmapScanRecord record;
+      record.T_submap_sensor = Pose3(Eigen::Translation3d(0.0, y, z));
+      submap->scans.push_back(record);
+    }
+  };
+  auto street = [](PointVector* out) {  // ground, and a 1 m wall at x = 12
+    for (double x = -2.0; x <= 11.8 + 1e-9; x += 0.2) {
+      for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
+    }
+    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
+      for (double z = 0.2; z <= 1.0 + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
+    }
+  };
+  Submap history, current;
+  street(&history.points);
+  const std::size_t truck_begin = history.points.size();
+  for (double y = -2.0; y <= 2.0 + 1e-9; y += 0.2) {
+    for (double z = 0.4; z <= 3.2 + 1e-9; z += 0.2) history.points.emplace_back(8.0, y, z);
+  }
+  with_origins(3.0, &history);
+  street(&current.points);
+  with_origins(1.0, &current);
+
+  // Truck points found below / above the guard.
+  auto found = [&](const DynamicDetectionConfig& config, int* low, int* high) {
+    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
+    ASSERT_TRUE(detector.ok());
+    StatusOr<DynamicDetectionResult> result =
+        detector.value().Detect(history, current, Pose3::Identity());
+    ASSERT_TRUE(result.ok());
+    *low = *high = 0;
+    for (std::uint32_t i : result.value().history_dynamic) {
+      ASSERT_GE(i, truck_begin);  // nothing but the truck
+      (history.points[i].z() > config.height_guard_m ? *high : *low)++;
+    }
+  };
+  const int truck_points = static_cast<int>(history.points.size() - truck_begin);
+  int low = 0, high = 0;
+  found(DynamicDetectionConfig(), &low, &high);
+  std::printf("truck side %d points: %d at or below the guard, %d above found\n", truck_points,
+              low, high);
+  EXPECT_EQ(low + high, truck_points);
+  EXPECT_EQ(high, 6 * 21);  // rows 2.2 .. 3.2 m of 21 points
+  DynamicDetectionConfig plain_guard;
+  plain_guard.guard_object_height_m = plain_guard.height_guard_m;
+  found(plain_guard, &low, &high);
+  std::printf("plain guard: %d at or below, %d above found\n", low, high);
+  EXPECT_EQ(low + high, truck_points - 6 * 21);
+  EXPECT_EQ(high, 0);
+}
+
 TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   DynamicDetectionConfig config;
   config.voxel_size_m = 0.0;
@@ -375,6 +432,9 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.min_passing_rays = 0;
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config = DynamicDetectionConfig();
+  config.guard_object_height_m = -1.0;
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.free_column_depth_m = -1.0;

@@ -247,7 +247,12 @@ class PairDetection {
     std::vector<std::uint32_t> neighbours;
     for (std::size_t i = 0; i < n; ++i) {
       if (side.common[i] || side.height_m[i] < config_.ground_tolerance_m) continue;
-      if (config_.height_guard_enabled && side.height_m[i] > config_.height_guard_m) continue;
+      // Above the height guard a point is never a seed, but it may belong to an object grown
+      // from below it, up to guard_object_height_m.
+      const bool above_guard =
+          config_.height_guard_enabled && side.height_m[i] > config_.height_guard_m;
+      if (above_guard && side.height_m[i] > config_.guard_object_height_m) continue;  // (a
+      // guard_object_height_m below height_guard_m only keeps the guard as it is)
       // Consistency: the other session has nothing above the ground around the point.
       indices_[other].Radius(side.points[i], config_.support_radius_m, &neighbours);
       int support = 0;
@@ -256,6 +261,7 @@ class PairDetection {
       }
       if (support > config_.max_support_points) continue;
       state[i] = 1;
+      if (above_guard) continue;
       const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(side.points[i]));
       int passing = cell != nullptr ? cell->count[other] : 0;
       ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
@@ -498,6 +504,7 @@ Status DynamicDetectionConfig::Validate() const {
         {"dynamic_grow_radius_m", dynamic_grow_radius_m},
         {"ground_cell_m", ground_cell_m},
         {"height_guard_m", height_guard_m},
+        {"guard_object_height_m", guard_object_height_m},
         {"mending_distance_m", mending_distance_m}}) {
     const Status status = CheckPositive(name, value);
     if (!status.ok()) return status;

@@ -118,6 +118,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "column_clearance_m", &m.dynamics.column_clearance_m},
       {"low_dynamics", "height_guard_enabled", &m.dynamics.height_guard_enabled},
       {"low_dynamics", "height_guard_m", &m.dynamics.height_guard_m},
+      {"low_dynamics", "guard_object_height_m", &m.dynamics.guard_object_height_m},
       {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},
       {"map_update", "fuse_overlap_distance_m", &m.fusion.overlap_distance_m},
       {"map_update", "fuse_voxel_m", &m.fusion.voxel_m},

@@ -64,7 +64,7 @@ const char kUsage[] =
     "                     min_passing_rays, max_support_points, min_cluster_points,\n"
     "                     min_cluster_coarse_points, max_range_m, end_margin_m, rays_per_point,\n"
     "                     origin_spacing_m, dynamic_grow_radius_m, mending_distance_m,\n"
-    "                     free_column_depth_m, column_clearance_m,\n"
+    "                     free_column_depth_m, column_clearance_m, guard_object_height_m,\n"
     "                     ground_tolerance_m, ground_cell_m, own_ground_max_gap_m)\n";
 
 constexpr int kCanopy = 6;
@@ -393,6 +393,7 @@ int main(int argc, char** argv) {
       else if (key == "support_radius_m") config.support_radius_m = v;
       else if (key == "free_column_depth_m") config.free_column_depth_m = v;
       else if (key == "column_clearance_m") config.column_clearance_m = v;
+      else if (key == "guard_object_height_m") config.guard_object_height_m = v;
       else if (key == "min_passing_rays") config.min_passing_rays = static_cast<int>(v);
       else if (key == "max_support_points") config.max_support_points = static_cast<int>(v);
       else if (key == "min_cluster_points") config.min_cluster_points = static_cast<int>(v);
