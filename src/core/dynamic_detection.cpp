@@ -221,8 +221,8 @@ class PairDetection {
           cell->flags |= kQueried[s];
           coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= kQueried[s];
         };
-        const Eigen::Vector3i key = grid_->KeyOf(side.points[i]);
-        query(key, grid_->Find(key));
+        const Eigen::Vector3i point_key = grid_->KeyOf(side.points[i]);
+        query(point_key, grid_->Find(point_key));
         // The free column below (only for points that can become dynamic).
         if (side.common[i]) continue;
         ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
@@ -248,11 +248,10 @@ class PairDetection {
     for (std::size_t i = 0; i < n; ++i) {
       if (side.common[i] || side.height_m[i] < config_.ground_tolerance_m) continue;
       // Above the height guard a point is never a seed, but it may belong to an object grown
-      // from below it, up to guard_object_height_m.
+      // from below it, up to guard_object_height_m (set below height_guard_m: the plain guard).
       const bool above_guard =
           config_.height_guard_enabled && side.height_m[i] > config_.height_guard_m;
-      if (above_guard && side.height_m[i] > config_.guard_object_height_m) continue;  // (a
-      // guard_object_height_m below height_guard_m only keeps the guard as it is)
+      if (above_guard && side.height_m[i] > config_.guard_object_height_m) continue;
       // Consistency: the other session has nothing above the ground around the point.
       indices_[other].Radius(side.points[i], config_.support_radius_m, &neighbours);
       int support = 0;
