@@ -5,7 +5,8 @@
 # lines, as for scripts/test.sh.
 #   scripts/sanitize.sh            ASan + UBSan, the whole test suite
 #   scripts/sanitize.sh --thread   ThreadSanitizer (build/ws_tsan), the gtests of the modules
-#                                  that run threads: OdometryWorker, ParallelFor users
+#                                  that run threads: OdometryWorker, WorkerPool and its users
+#                                  (the odometry's correspondence search), ParallelFor users
 #                                  (inter-session matching, merge), the simulator; then both
 #                                  rostests (mapping.test, bad_input.test) with the nodelet
 #                                  manager under TSan: the /usr nodelet binary is not
@@ -28,7 +29,8 @@ if [ "${1:-}" = "--thread" ]; then
     -DCMAKE_CXX_FLAGS="${flags}" -DCMAKE_C_FLAGS="${flags}" \
     -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=thread"
   msm_source_workspace
-  tests=(odometry_worker_test inter_session_matcher_test session_merger_test
+  tests=(odometry_worker_test worker_pool_test voxel_hash_map_test icp_registration_test
+         odometry_test inter_session_matcher_test session_merger_test
          sim_campus_simulator_test)
   [ "${2:-}" = "--rostests-only" ] && tests=()
   # The nodelets library and the tool the mapping rostest simulates its bags with.

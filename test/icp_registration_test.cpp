@@ -151,6 +151,31 @@ TEST(IcpRegistrationTest, ReassociationSearchesLessAndLandsOnTheSamePose) {
   EXPECT_FALSE(config.Validate().ok());
 }
 
+TEST(IcpRegistrationTest, SearchThreadsGiveTheSamePose) {
+  const SyntheticPair pair = MakePair();
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.AddPoints(VoxelDownsample(pair.target, 0.1));
+  map.SetNormalsEnabled(false);  // as in the odometry: only then is the search split
+  const PointVector source = VoxelDownsample(pair.source, 0.2);
+  ASSERT_GT(source.size(), 1000u);  // enough queries for the parallel path
+  const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.2, 0.1, 0.0, 0.0, 0.0, 1.0 * kDeg);
+  IcpConfig config;
+  config.point_to_point_fallback = true;  // no normals: every pair is point-to-point
+  const StatusOr<IcpResult> one =
+      IcpRegistration::Create(config).value().Register(source, map, guess, 1.0, 0.2);
+  config.search_threads = 2;
+  const StatusOr<IcpResult> two =
+      IcpRegistration::Create(config).value().Register(source, map, guess, 1.0, 0.2);
+  ASSERT_TRUE(one.ok() && two.ok());
+  EXPECT_EQ(one.value().pose.matrix(), two.value().pose.matrix());
+  EXPECT_EQ(one.value().iterations, two.value().iterations);
+  EXPECT_EQ(one.value().num_inliers, two.value().num_inliers);
+  // Point-to-point pairs on sampled rings are biased (see point_to_point_fallback): loose.
+  ExpectPoseNear(two.value().pose, pair.T_a_b, 0.1, 1.0 * kDeg);
+  config.search_threads = 0;
+  EXPECT_FALSE(config.Validate().ok());
+}
+
 TEST(IcpRegistrationTest, FailsClearlyWithoutOverlapOrTarget) {
   const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
   VoxelHashMap empty = VoxelHashMap::Create(VoxelHashMapConfig()).value();

@@ -1,8 +1,10 @@
 #include "multisession_mapper/core/voxel_hash_map.h"
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -39,6 +41,39 @@ TEST(VoxelHashMapTest, NearestNeighbourMatchesBruteForceWithinOneVoxel) {
     }
   }
   EXPECT_GT(found, 1000);
+}
+
+TEST(VoxelHashMapTest, ParallelFindMatchesGivesTheSequentialMatches) {
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-15.0, 15.0);
+  PointVector pts;
+  for (int i = 0; i < 20000; ++i) pts.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+  map.AddPoints(pts);
+  PointVector queries;
+  for (int i = 0; i < 3000; ++i) queries.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+  for (const bool normals : {false, true}) {  // with normals: the sequential path
+    map.SetNormalsEnabled(normals);
+    std::vector<std::uint8_t> found;
+    std::vector<TargetMatch> matches;
+    WorkerPool pool(2);
+    map.FindMatches(queries, 0.6, &pool, &found, &matches);
+    ASSERT_EQ(found.size(), queries.size());
+    ASSERT_EQ(matches.size(), queries.size());
+    int hits = 0;
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      TargetMatch expected;
+      const bool ok = map.FindMatch(queries[i], 0.6, &expected);
+      ASSERT_EQ(found[i] != 0, ok) << "query " << i;
+      if (!ok) continue;
+      ++hits;
+      EXPECT_EQ(matches[i].point, expected.point);
+      EXPECT_EQ(matches[i].distance_sq, expected.distance_sq);
+      EXPECT_EQ(matches[i].has_normal, expected.has_normal);
+      if (expected.has_normal) EXPECT_EQ(matches[i].normal, expected.normal);
+    }
+    EXPECT_GT(hits, 1000);
+  }
 }
 
 TEST(VoxelHashMapTest, RespectsMaxPointsAndSpacing) {

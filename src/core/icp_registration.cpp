@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/icp_registration.h"
 
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -31,12 +32,21 @@ Status IcpConfig::Validate() const {
       !std::isfinite(reassociate_rotation_rad) || reassociate_rotation_rad < 0.0) {
     return Status::Error("icp.reassociate_translation_m / reassociate_rotation_rad must be >= 0");
   }
+  if (search_threads < 1) {
+    return Status::Error("icp.search_threads must be >= 1, got " +
+                         std::to_string(search_threads));
+  }
   if (min_correspondences < 6) {
     return Status::Error("icp.min_correspondences must be >= 6 (6 unknowns), got " +
                          std::to_string(min_correspondences));
   }
   return Status::Ok();
 }
+
+IcpRegistration::IcpRegistration(const IcpConfig& config)
+    : config_(config),
+      pool_(config.search_threads > 1 ? std::make_shared<WorkerPool>(config.search_threads)
+                                      : nullptr) {}
 
 StatusOr<IcpRegistration> IcpRegistration::Create(const IcpConfig& config) {
   const Status status = config.Validate();
@@ -130,11 +140,13 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   };
   std::vector<Pair> pairs_found;
   pairs_found.reserve(source.size());
+  PointVector moved_source;          // source points at the pose of a search
+  std::vector<std::uint8_t> found;   // per source point: a match within the distance
+  std::vector<TargetMatch> matches;  // per source point: its match when found
   Pose3 searched_pose = pose;
   bool must_search = true;
   const bool every_iteration =
       config_.reassociate_translation_m == 0.0 && config_.reassociate_rotation_rad == 0.0;
-  TargetMatch match;
   using Matrix6d = Eigen::Matrix<double, 6, 6>;
   using Vector6d = Eigen::Matrix<double, 6, 1>;
   for (int iteration = 1; iteration <= config_.max_iterations; ++iteration) {
@@ -143,11 +155,13 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
                         se3::TranslationNorm(moved) > config_.reassociate_translation_m ||
                         se3::RotationAngleRad(moved) > config_.reassociate_rotation_rad;
     if (search) {
+      moved_source.resize(source.size());
+      for (std::size_t i = 0; i < source.size(); ++i) moved_source[i] = pose * source[i];
+      target.FindMatches(moved_source, max_correspondence_distance_m, pool_.get(), &found,
+                         &matches);
       pairs_found.clear();
       for (std::size_t i = 0; i < source.size(); ++i) {
-        if (target.FindMatch(pose * source[i], max_correspondence_distance_m, &match)) {
-          pairs_found.push_back({i, match});
-        }
+        if (found[i] != 0) pairs_found.push_back({i, matches[i]});
       }
       searched_pose = pose;
       must_search = false;

@@ -43,6 +43,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "icp_convergence_rotation_rad", &s.odometry.icp.convergence_rotation_rad},
       {"odometry", "icp_reassociate_translation_m", &s.odometry.icp.reassociate_translation_m},
       {"odometry", "icp_reassociate_rotation_rad", &s.odometry.icp.reassociate_rotation_rad},
+      {"odometry", "icp_search_threads", &s.odometry.icp.search_threads},
       {"odometry", "local_map_voxel_size_m", &s.odometry.local_map.voxel_size_m},
       {"odometry", "local_map_max_points_per_voxel", &s.odometry.local_map.max_points_per_voxel},
       {"odometry", "local_map_max_distance_m", &s.odometry.local_map.max_distance_m},

@@ -71,10 +71,10 @@ void VoxelHashMap::ClearNeighbourCache() {
   neighbour_ids_.clear();
 }
 
-const std::int32_t* VoxelHashMap::NeighbourIds(const VoxelIndex& center) const {
+std::uint32_t VoxelHashMap::NeighbourOffset(const VoxelIndex& center) const {
   const std::uint64_t key = Key(center);
   const auto found = neighbour_cache_.find(key);
-  if (found != neighbour_cache_.end()) return neighbour_ids_.data() + found->second;
+  if (found != neighbour_cache_.end()) return found->second;
   const std::uint32_t offset = static_cast<std::uint32_t>(neighbour_ids_.size());
   neighbour_ids_.resize(neighbour_ids_.size() + kNeighbourhood);
   for (int k = 0; k < kNeighbourhood; ++k) {
@@ -82,7 +82,7 @@ const std::int32_t* VoxelHashMap::NeighbourIds(const VoxelIndex& center) const {
     neighbour_ids_[offset + k] = Find(center + VoxelIndex(o.dx, o.dy, o.dz));
   }
   neighbour_cache_.emplace(key, offset);
-  return neighbour_ids_.data() + offset;
+  return offset;
 }
 
 void VoxelHashMap::Clear() {
@@ -214,6 +214,46 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
                              TargetMatch* match) const {
   if (voxels_.empty() || !(max_distance_m > 0.0)) return false;
   const VoxelIndex center = IndexOf(query);
+  return MatchAround(query, center, NeighbourIds(center), max_distance_m, match);
+}
+
+void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m,
+                               WorkerPool* pool,
+                               std::vector<std::uint8_t>* found,
+                               std::vector<TargetMatch>* matches) const {
+  // Below this many queries a second thread costs more than it saves.
+  constexpr std::size_t kMinParallelQueries = 256;
+  constexpr std::size_t kBlock = 128;  // queries per work item
+  const std::size_t n = queries.size();
+  if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries || voxels_.empty() ||
+      !(max_distance_m > 0.0)) {
+    RegistrationTarget::FindMatches(queries, max_distance_m, nullptr, found, matches);
+    return;
+  }
+  found->assign(n, 0);
+  matches->resize(n);
+  // The neighbour cache's only writer is this loop; the parallel part below only reads.
+  std::vector<VoxelIndex> centers(n);
+  std::vector<std::uint32_t> offsets(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    centers[i] = IndexOf(queries[i]);
+    offsets[i] = NeighbourOffset(centers[i]);
+  }
+  const std::int32_t* ids = neighbour_ids_.data();
+  pool->Run((n + kBlock - 1) / kBlock, [&](std::size_t block) {
+    const std::size_t end = std::min(n, (block + 1) * kBlock);
+    for (std::size_t i = block * kBlock; i < end; ++i) {
+      (*found)[i] =
+          MatchAround(queries[i], centers[i], ids + offsets[i], max_distance_m, &(*matches)[i])
+              ? 1
+              : 0;
+    }
+  });
+}
+
+bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,
+                               const std::int32_t* ids, double max_distance_m,
+                               TargetMatch* match) const {
   const double size = config_.voxel_size_m;
   // Distance from the query to the low / high face of its own voxel, per axis.
   const Eigen::Vector3d low = query - center.cast<double>() * size;
@@ -222,7 +262,6 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
   double best_sq = max_distance_m * max_distance_m;
   int best_id = -1;
   std::size_t best_index = 0;
-  const std::int32_t* ids = NeighbourIds(center);
   for (int k = 0; k < kNeighbourhood; ++k) {
     const int id = ids[k];
     if (id < 0) continue;

@@ -32,12 +32,14 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 
 #include <Eigen/Core>
 
 #include "multisession_mapper/core/registration_target.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -68,6 +70,10 @@ struct IcpConfig {
   /// pairs. 0 / 0: search at every iteration (classic ICP).
   double reassociate_translation_m = 0.0;
   double reassociate_rotation_rad = 0.0;
+  /// Threads of each correspondence search (1: the calling thread only; more: a WorkerPool
+  /// of this many, started by Create). Targets that allow it (VoxelHashMap without normals)
+  /// split the search; the result is the same as with 1.
+  int search_threads = 1;
 
   Status Validate() const;
 };
@@ -120,12 +126,15 @@ class IcpRegistration {
   const IcpConfig& config() const { return config_; }
 
  private:
-  explicit IcpRegistration(const IcpConfig& config) : config_(config) {}
+  explicit IcpRegistration(const IcpConfig& config);
   StatusOr<IcpResult> RegisterImpl(const PointVector& source, const PointVector* source_normals,
                                    const RegistrationTarget& target, const Pose3& initial_guess,
                                    double max_correspondence_distance_m,
                                    double kernel_scale_m) const;
   IcpConfig config_;
+  /// The search threads (null with search_threads 1); copies share it, and their
+  /// registrations then take turns on it.
+  std::shared_ptr<WorkerPool> pool_;
 };
 
 }  // namespace core

@@ -46,8 +46,14 @@ struct OdometryConfig {
   /// Local map: 1 m voxels, 20 points each, 100 m around the robot.
   VoxelHashMapConfig local_map;
   /// ICP: max_correspondence_distance_m and kernel_scale_m are overridden per scan by the
-  /// adaptive threshold (below); the other fields apply.
-  IcpConfig icp;
+  /// adaptive threshold (below); the other fields apply. The correspondence search runs on
+  /// 2 threads (search_threads; same poses as with 1): the odometry is the offline runner's
+  /// slowest stage and the submap thread leaves most of the second core idle.
+  IcpConfig icp = [] {
+    IcpConfig c;
+    c.search_threads = 2;
+    return c;
+  }();
   AdaptiveThresholdConfig threshold;
   /// Point-to-plane with normals of the registration points from the scan's own rings
   /// (EstimateScanNormals; needs per-point ring indices, without them the local map's normals

@@ -12,7 +12,8 @@
 namespace multisession_mapper {
 namespace core {
 
-/// Runs body(i) for every i in [0, n) on up to `threads` threads (1: in the calling thread).
+/// Runs body(i) for every i in [0, n) on up to `threads` threads, the calling thread among
+/// them (1: only the calling thread).
 template <typename Body>
 void ParallelFor(std::size_t n, int threads, const Body& body) {
   const std::size_t workers =
@@ -22,13 +23,15 @@ void ParallelFor(std::size_t n, int threads, const Body& body) {
     return;
   }
   std::atomic<std::size_t> next{0};
+  const auto work = [&] {
+    for (std::size_t i = next++; i < n; i = next++) body(i);
+  };
+  // The calling thread is one of the workers: one thread start less per call. (Short loops
+  // run very often want a WorkerPool instead: no thread start at all.)
   std::vector<std::thread> pool;
-  pool.reserve(workers);
-  for (std::size_t w = 0; w < workers; ++w) {
-    pool.emplace_back([&] {
-      for (std::size_t i = next++; i < n; i = next++) body(i);
-    });
-  }
+  pool.reserve(workers - 1);
+  for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work);
+  work();
   for (std::thread& t : pool) t.join();
 }
 

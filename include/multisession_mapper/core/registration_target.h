@@ -4,7 +4,14 @@
 // registration, KdTreeTarget), so the same IcpRegistration serves both.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
 #include <Eigen/Core>
+
+#include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -26,6 +33,21 @@ class RegistrationTarget {
   /// unless the implementation says otherwise.
   virtual bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                          TargetMatch* match) const = 0;
+
+  /// FindMatch for every query: (*found)[i] is 1 when queries[i] has a match, which is then in
+  /// (*matches)[i]. Results are those of one FindMatch per query in order. A `pool` (may be
+  /// null) lets an implementation that allows it search on the pool's threads (VoxelHashMap
+  /// without normals); this default runs FindMatch in order on the calling thread.
+  virtual void FindMatches(const PointVector& queries, double max_distance_m, WorkerPool* pool,
+                           std::vector<std::uint8_t>* found,
+                           std::vector<TargetMatch>* matches) const {
+    (void)pool;
+    found->assign(queries.size(), 0);
+    matches->resize(queries.size());
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      (*found)[i] = FindMatch(queries[i], max_distance_m, &(*matches)[i]) ? 1 : 0;
+    }
+  }
 
   /// True when the target holds no point.
   virtual bool empty() const = 0;

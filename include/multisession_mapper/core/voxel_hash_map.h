@@ -65,6 +65,12 @@ class VoxelHashMap : public RegistrationTarget {
 
   bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                  TargetMatch* match) const override;
+  /// With normals disabled and a pool of 2+ threads: the neighbourhoods of all queries are
+  /// looked up (and cached) on the calling thread, then the nearest points are searched on
+  /// the pool's threads. Same results as FindMatch per query; otherwise it is that loop.
+  void FindMatches(const PointVector& queries, double max_distance_m, WorkerPool* pool,
+                   std::vector<std::uint8_t>* found,
+                   std::vector<TargetMatch>* matches) const override;
   /// false: FindMatch returns no normals (has_normal false) and computes none, e.g. when the
   /// ICP takes its normals from the source scan (the normals are most of a match's cost).
   void SetNormalsEnabled(bool enabled) { normals_enabled_ = enabled; }
@@ -102,7 +108,17 @@ class VoxelHashMap : public RegistrationTarget {
   /// Ids of the 27 voxels around `center` (itself first, then the 6 face, 12 edge and 8
   /// corner neighbours; -1 where empty), cached until the set of voxels changes: an ICP
   /// queries the same voxels at every iteration.
-  const std::int32_t* NeighbourIds(const VoxelIndex& center) const;
+  const std::int32_t* NeighbourIds(const VoxelIndex& center) const {
+    const std::uint32_t offset = NeighbourOffset(center);  // may grow neighbour_ids_: first
+    return neighbour_ids_.data() + offset;
+  }
+  /// Offset of those 27 ids in neighbour_ids_ (stable until the cache is cleared; pointers
+  /// are not, the vector grows).
+  std::uint32_t NeighbourOffset(const VoxelIndex& center) const;
+  /// FindMatch's search among the voxels `ids` around `center`, the voxel of `query`. Reads
+  /// only, unless normals are enabled (they are computed and cached on demand).
+  bool MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,
+                   const std::int32_t* ids, double max_distance_m, TargetMatch* match) const;
   void ClearNeighbourCache();
   // Block of voxel `id` in points_: [bounds low, bounds high, point 0, point 1, ...].
   const Eigen::Vector3d* BlockOf(std::size_t id) const { return points_.data() + id * stride_; }

@@ -1,0 +1,71 @@
+#include "multisession_mapper/core/worker_pool.h"
+
+#include <atomic>
+
+namespace multisession_mapper {
+namespace core {
+
+struct WorkerPool::Job {
+  std::size_t n = 0;
+  const std::function<void(std::size_t)>* body = nullptr;
+  std::atomic<std::size_t> next{0};
+
+  void Work() {
+    for (std::size_t i = next++; i < n; i = next++) (*body)(i);
+  }
+};
+
+WorkerPool::WorkerPool(int threads) {
+  for (int t = 1; t < threads; ++t) helpers_.emplace_back([this] { HelperLoop(); });
+}
+
+WorkerPool::~WorkerPool() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  work_cv_.notify_all();
+  for (std::thread& helper : helpers_) helper.join();
+}
+
+void WorkerPool::HelperLoop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  std::uint64_t seen = generation_;
+  while (true) {
+    work_cv_.wait(lock, [&] { return stop_ || generation_ != seen; });
+    if (stop_) return;
+    seen = generation_;
+    // A helper that wakes after its Run has finished finds no job and waits again.
+    Job* job = job_;
+    if (job == nullptr) continue;
+    ++busy_;
+    lock.unlock();
+    job->Work();
+    lock.lock();
+    if (--busy_ == 0) done_cv_.notify_all();
+  }
+}
+
+void WorkerPool::Run(std::size_t n, const std::function<void(std::size_t)>& body) {
+  std::lock_guard<std::mutex> run_lock(run_mutex_);
+  if (helpers_.empty() || n <= 1) {
+    for (std::size_t i = 0; i < n; ++i) body(i);
+    return;
+  }
+  Job job;
+  job.n = n;
+  job.body = &body;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    job_ = &job;
+    ++generation_;
+  }
+  work_cv_.notify_all();
+  job.Work();
+  std::unique_lock<std::mutex> lock(mutex_);
+  job_ = nullptr;  // helpers not yet started on it will not start
+  done_cv_.wait(lock, [&] { return busy_ == 0; });
+}
+
+}  // namespace core
+}  // namespace multisession_mapper
