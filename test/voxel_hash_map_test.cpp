@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "multisession_mapper/core/worker_pool.h"
+
 namespace multisession_mapper {
 namespace core {
 namespace {

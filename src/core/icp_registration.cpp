@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 
 #include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -178,7 +179,8 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     const Eigen::Vector3d center = pose.translation();
     for (Pair& pair : pairs_found) {
       TargetMatch& m = pair.match;
-      const Eigen::Vector3d p = pose * source[pair.index];
+      // On a search iteration the pose is the searched one: its points are already moved.
+      const Eigen::Vector3d p = search ? moved_source[pair.index] : pose * source[pair.index];
       const Eigen::Vector3d diff = p - m.point;
       sum_dist_sq += search ? m.distance_sq : diff.squaredNorm();
       if (source_normals != nullptr) {

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <string>
 
+#include "multisession_mapper/core/worker_pool.h"
+
 namespace multisession_mapper {
 namespace core {
 namespace {

@@ -39,7 +39,6 @@
 #include "multisession_mapper/core/registration_target.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/types.h"
-#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {

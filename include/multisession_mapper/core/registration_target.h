@@ -11,10 +11,11 @@
 #include <Eigen/Core>
 
 #include "multisession_mapper/core/types.h"
-#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
+
+class WorkerPool;  // worker_pool.h; only implementations that split the search need it
 
 /// One target point matched to a query.
 struct TargetMatch {
