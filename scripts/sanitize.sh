@@ -31,7 +31,7 @@ if [ "${1:-}" = "--thread" ]; then
   msm_source_workspace
   tests=(odometry_worker_test worker_pool_test voxel_hash_map_test icp_registration_test
          odometry_test inter_session_matcher_test session_merger_test
-         sim_campus_simulator_test)
+         sim_campus_simulator_test dynamic_propagation_test)
   [ "${2:-}" = "--rostests-only" ] && tests=()
   # The nodelets library and the tool the mapping rostest simulates its bags with.
   make -C "${MSM_WS}/build" -j"${MSM_JOBS:-$(nproc)}" "${tests[@]}" multisession_mapper_nodelets \

@@ -58,6 +58,7 @@ bool SegmentHitsBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Bo
 
 struct Scene {
   bool car = false;
+  Box car_box = kCarBox;  // another car in the same place: another box
 };
 
 struct LabelledCloud {
@@ -92,7 +93,7 @@ LabelledCloud Scan(const Scene& scene, const std::vector<Eigen::Vector3d>& origi
         }
         double t_in = 0.0, t_out = 0.0;
         if (RayBox(o, d, kWallBox, &t_in, &t_out) && t_in < best) best = t_in, label = kWall;
-        if (scene.car && RayBox(o, d, kCarBox, &t_in, &t_out) && t_in < best) {
+        if (scene.car && RayBox(o, d, scene.car_box, &t_in, &t_out) && t_in < best) {
           best = t_in, label = kCar;
         }
         if (RayBox(o, d, kTrunkBox, &t_in, &t_out) && t_in < best) best = t_in, label = kTrunk;
@@ -270,6 +271,71 @@ TEST(DynamicDetectionTest, CarThatArrivedIsDynamicInTheCurrentSubmap) {
   EXPECT_LE(result.history_dynamic.size(), 3u);
   // The new car is not mending material.
   for (std::uint32_t i : result.current_mending) EXPECT_NE(current.labels[i], kCar);
+}
+
+// A parking place taken by another car in the current session: 0.3 m shorter, 0.4 m further
+// along the street, 0.15 m taller, 0.1 m further from the road. Neither session sees through
+// the other's car and their road-side faces are 0.1 m apart (common by d_beta), so the
+// free-space steps find almost nothing; the changed-object step compares the surfaces.
+TEST(DynamicDetectionTest, AnotherCarInTheSamePlaceIsDynamicInBothSubmaps) {
+  Scene other_car{true};
+  other_car.car_box = Box{{7.3, -1.45, 0.25}, {9.1, 2.75, 1.75}};
+  const SessionData history = MakeSession(Scene{true}, 0.0, 51, HistoryFrame());
+  const SessionData current = MakeSession(other_car, 0.3, 52, Pose3::Identity());
+  const int history_car = CountLabel(history.labels, kCar);
+  const int current_car = CountLabel(current.labels, kCar);
+  ASSERT_GT(history_car, 100);
+  ASSERT_GT(current_car, 100);
+
+  DynamicDetectionConfig without;
+  without.changed_objects_enabled = false;
+  const DynamicDetectionResult free_space = RunDetector(history, current, without);
+  const int history_found_without =
+      CountLabel(history.labels, free_space.history_dynamic, kCar, true);
+  const int current_found_without =
+      CountLabel(current.labels, free_space.current_dynamic, kCar, true);
+
+  const DynamicDetectionResult result = RunDetector(history, current, DynamicDetectionConfig());
+  const int history_found = CountLabel(history.labels, result.history_dynamic, kCar, true);
+  const int current_found = CountLabel(current.labels, result.current_dynamic, kCar, true);
+  std::printf("history car %d/%d (%d without the step), current car %d/%d (%d without); other "
+              "points dynamic: %d / %d\n",
+              history_found, history_car, history_found_without, current_found, current_car,
+              current_found_without,
+              CountLabel(history.labels, result.history_dynamic, kCar, false),
+              CountLabel(current.labels, result.current_dynamic, kCar, false));
+  for (const auto& object : result.examined_objects) {
+    std::printf("  examined side %d: %zu points, %d/%d off%s\n", object.side,
+                object.points.size(), object.off_surface, object.compared,
+                object.changed ? " changed" : "");
+  }
+  EXPECT_LT(history_found_without, 0.5 * history_car);  // the case the step is for
+  EXPECT_GE(history_found, 0.95 * history_car);
+  EXPECT_GE(current_found, 0.95 * current_car);
+  EXPECT_LE(CountLabel(history.labels, result.history_dynamic, kCar, false), 3);
+  EXPECT_LE(CountLabel(current.labels, result.current_dynamic, kCar, false), 3);
+  // Neither car is mending material.
+  for (std::uint32_t i : result.current_mending) EXPECT_NE(current.labels[i], kCar);
+}
+
+// The same car in both sessions (sampled from other places, different noise) is static, and
+// it was examined (not just skipped as too small or too far).
+TEST(DynamicDetectionTest, TheSameCarInBothSessionsIsStatic) {
+  const SessionData history = MakeSession(Scene{true}, 0.0, 61, HistoryFrame());
+  const SessionData current = MakeSession(Scene{true}, 0.3, 62, Pose3::Identity());
+  const DynamicDetectionResult result = RunDetector(history, current, DynamicDetectionConfig());
+  int car_objects = 0;
+  for (const auto& object : result.examined_objects) {
+    const std::vector<int>& labels = object.side == 0 ? history.labels : current.labels;
+    const int car = CountLabel(labels, object.points, kCar, true);
+    std::printf("  examined side %d: %zu points (%d car), %d/%d off%s\n", object.side,
+                object.points.size(), car, object.off_surface, object.compared,
+                object.changed ? " changed" : "");
+    if (car > 0.9 * object.points.size() && object.compared > 50) ++car_objects;
+  }
+  EXPECT_EQ(car_objects, 2);
+  EXPECT_LE(CountLabel(history.labels, result.history_dynamic, kCar, true), 3);
+  EXPECT_LE(CountLabel(current.labels, result.current_dynamic, kCar, true), 3);
 }
 
 TEST(DynamicDetectionTest, PorousCanopyIsNotDynamicWithoutTheHeightGuard) {

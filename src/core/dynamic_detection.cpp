@@ -5,6 +5,7 @@
 #include <cmath>
 #include <deque>
 #include <initializer_list>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <string>
@@ -274,25 +275,18 @@ class PairDetection {
     // Grow clusters from the coarse points over eligible points.
     std::vector<std::uint8_t> visited(n, 0);
     std::vector<std::uint32_t> dynamic, cluster;
-    std::deque<std::uint32_t> queue;
     for (std::size_t seed = 0; seed < n; ++seed) {
       if (state[seed] != 2 || visited[seed]) continue;
-      cluster.clear();
-      int coarse = 0;
       visited[seed] = 1;
-      queue.push_back(static_cast<std::uint32_t>(seed));
-      while (!queue.empty()) {
-        const std::uint32_t i = queue.front();
-        queue.pop_front();
-        cluster.push_back(i);
-        if (state[i] == 2) ++coarse;
-        indices_[s].Radius(side.points[i], config_.dynamic_grow_radius_m, &neighbours);
-        for (std::uint32_t j : neighbours) {
-          if (state[j] == 0 || visited[j]) continue;
-          visited[j] = 1;
-          queue.push_back(j);
-        }
-      }
+      Grow(s, static_cast<std::uint32_t>(seed), config_.dynamic_grow_radius_m,
+           [&](std::uint32_t j) {
+             if (state[j] == 0 || visited[j]) return false;
+             visited[j] = 1;
+             return true;
+           },
+           &cluster);
+      int coarse = 0;
+      for (std::uint32_t i : cluster) coarse += state[i] == 2;
       if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
           coarse >= config_.min_cluster_coarse_points) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
@@ -302,7 +296,54 @@ class PairDetection {
     return dynamic;
   }
 
-  // Step 5: current points missing from the history and not seen through by it.
+  // Step 5: objects of side s that are not the same object in the other session (another car
+  // in the same slot). Returns their points; every examined object goes to `examined`.
+  std::vector<std::uint32_t> ChangedObjects(
+      int s, std::vector<DynamicDetectionResult::ExaminedObject>* examined) {
+    const Side& side = sides_[s];
+    const int other = 1 - s;
+    const std::size_t n = side.points.size();
+    const double range_sq = config_.changed_compare_range_m * config_.changed_compare_range_m;
+    auto near_any = [range_sq](const PointVector& origins, const Eigen::Vector3d& p) {
+      for (const Eigen::Vector3d& o : origins) {
+        if ((o - p).squaredNorm() <= range_sq) return true;
+      }
+      return false;
+    };
+    std::vector<std::uint8_t> eligible(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      eligible[i] = side.height_m[i] >= config_.ground_tolerance_m &&
+                    near_any(side.origins, side.points[i]) &&
+                    near_any(sides_[other].origins, side.points[i]);
+    }
+    std::vector<std::uint32_t> changed, cluster;
+    for (std::size_t seed = 0; seed < n; ++seed) {
+      if (!eligible[seed]) continue;
+      // Euclidean clustering; eligible[] doubles as the visited mark (cleared when taken).
+      eligible[seed] = 0;
+      Grow(s, static_cast<std::uint32_t>(seed), config_.changed_grow_radius_m,
+           [&](std::uint32_t j) {
+             if (!eligible[j]) return false;
+             eligible[j] = 0;
+             return true;
+           },
+           &cluster);
+      if (static_cast<int>(cluster.size()) < config_.changed_min_points) continue;
+      if (!MovableShape(s, cluster)) continue;
+      DynamicDetectionResult::ExaminedObject object;
+      object.side = s;
+      object.points = cluster;
+      CompareSurfaces(s, cluster, &object);
+      object.changed = object.compared >= config_.changed_min_compared &&
+                       object.off_surface >= config_.changed_min_fraction * object.compared;
+      if (object.changed) changed.insert(changed.end(), cluster.begin(), cluster.end());
+      examined->push_back(std::move(object));
+    }
+    std::sort(changed.begin(), changed.end());
+    return changed;
+  }
+
+  // Step 6: current points missing from the history and not seen through by it.
   std::vector<std::uint32_t> Mending(const std::vector<std::uint32_t>& current_dynamic) const {
     const Side& side = sides_[kCurrent];
     std::vector<std::uint8_t> dynamic(side.points.size(), 0);
@@ -318,6 +359,89 @@ class PairDetection {
   }
 
  private:
+  // Breadth-first growth over side s from `seed` (already taken) with neighbour radius
+  // radius_m: neighbour j joins when take(j) says so (take marks it). `cluster` gets the
+  // seed and every point that joined.
+  template <typename Take>
+  void Grow(int s, std::uint32_t seed, double radius_m, Take take,
+            std::vector<std::uint32_t>* cluster) const {
+    cluster->clear();
+    std::deque<std::uint32_t> queue{seed};
+    std::vector<std::uint32_t> neighbours;
+    while (!queue.empty()) {
+      const std::uint32_t i = queue.front();
+      queue.pop_front();
+      cluster->push_back(i);
+      indices_[s].Radius(sides_[s].points[i], radius_m, &neighbours);
+      for (std::uint32_t j : neighbours) {
+        if (take(j)) queue.push_back(j);
+      }
+    }
+  }
+
+  // An object of movable size standing on the ground with mostly planar surfaces.
+  bool MovableShape(int s, const std::vector<std::uint32_t>& cluster) {
+    const Side& side = sides_[s];
+    Eigen::Vector2d lo = side.points[cluster.front()].head<2>(), hi = lo;
+    float bottom = std::numeric_limits<float>::infinity(), top = -bottom;
+    int planar = 0;
+    Eigen::Vector3f normal;
+    for (std::uint32_t i : cluster) {
+      lo = lo.cwiseMin(side.points[i].head<2>());
+      hi = hi.cwiseMax(side.points[i].head<2>());
+      bottom = std::min(bottom, side.height_m[i]);
+      top = std::max(top, side.height_m[i]);
+      planar += Normal(s, i, &normal);
+    }
+    return (hi - lo).norm() <= config_.changed_max_extent_m &&
+           top <= config_.guard_object_height_m && bottom <= config_.changed_max_bottom_m &&
+           planar >= config_.changed_min_planar_fraction * static_cast<double>(cluster.size());
+  }
+
+  // Counts the object's points where the other session says something (compared): it has an
+  // above-ground point within changed_neighbour_radius_m, one of them with a normal unless one
+  // is close enough, or else its rays passed through the point's voxel (at least
+  // min_passing_rays). Of those, the points that contradict the other session (off): farther
+  // than changed_surface_distance_m from every such neighbour's surface, or seen through.
+  void CompareSurfaces(int s, const std::vector<std::uint32_t>& cluster,
+                       DynamicDetectionResult::ExaminedObject* object) {
+    const int other = 1 - s;
+    const Side& theirs = sides_[other];
+    std::vector<std::uint32_t> neighbours;
+    Eigen::Vector3f normal;
+    for (std::uint32_t i : cluster) {
+      const Eigen::Vector3d& p = sides_[s].points[i];
+      indices_[other].Nearest(p, 8, config_.changed_neighbour_radius_m, &neighbours);
+      bool any = false, planar = false, on_surface = false;
+      for (std::uint32_t j : neighbours) {
+        if (theirs.height_m[j] < config_.ground_tolerance_m) continue;
+        any = true;
+        const Eigen::Vector3d d = p - theirs.points[j];
+        const bool has_normal = Normal(other, j, &normal);
+        planar = planar || has_normal;
+        const double distance = has_normal ? std::abs(normal.cast<double>().dot(d)) : d.norm();
+        if (distance <= config_.changed_surface_distance_m) {
+          on_surface = true;
+          break;
+        }
+      }
+      // Off a surface only where the other session has one (a planar neighbour): the gaps
+      // between sparse samples of an edge or a blurred surface say nothing.
+      if (any && !on_surface && !planar) continue;
+      if (!any) {
+        const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(p));
+        if (cell != nullptr && cell->count[other] >= config_.min_passing_rays) {
+          ++object->compared;
+          ++object->off_surface;
+          ++object->seen_through;
+        }
+        continue;
+      }
+      ++object->compared;
+      object->off_surface += !on_surface;
+    }
+  }
+
   // Calls visit(key) for the voxels below the voxel of point i of side s, one after the other
   // down to column_clearance_m above its local ground and at most free_column_depth_m deep,
   // while visit returns true.
@@ -504,7 +628,13 @@ Status DynamicDetectionConfig::Validate() const {
         {"ground_cell_m", ground_cell_m},
         {"height_guard_m", height_guard_m},
         {"guard_object_height_m", guard_object_height_m},
-        {"mending_distance_m", mending_distance_m}}) {
+        {"mending_distance_m", mending_distance_m},
+        {"changed_compare_range_m", changed_compare_range_m},
+        {"changed_grow_radius_m", changed_grow_radius_m},
+        {"changed_max_extent_m", changed_max_extent_m},
+        {"changed_max_bottom_m", changed_max_bottom_m},
+        {"changed_neighbour_radius_m", changed_neighbour_radius_m},
+        {"changed_surface_distance_m", changed_surface_distance_m}}) {
     const Status status = CheckPositive(name, value);
     if (!status.ok()) return status;
   }
@@ -541,6 +671,17 @@ Status DynamicDetectionConfig::Validate() const {
       min_cluster_coarse_points > min_cluster_points) {
     return Status::Error(
         "dynamic_detection: need 1 <= min_cluster_coarse_points <= min_cluster_points");
+  }
+  if (changed_min_points < 1 || changed_min_compared < 1) {
+    return Status::Error(
+        "dynamic_detection.changed_min_points and changed_min_compared must be >= 1");
+  }
+  if (!std::isfinite(changed_min_planar_fraction) || changed_min_planar_fraction < 0.0 ||
+      changed_min_planar_fraction > 1.0 || !std::isfinite(changed_min_fraction) ||
+      changed_min_fraction <= 0.0 || changed_min_fraction > 1.0) {
+    return Status::Error(
+        "dynamic_detection.changed_min_planar_fraction must be in [0, 1] and "
+        "changed_min_fraction in (0, 1]");
   }
   return Status::Ok();
 }
@@ -586,6 +727,19 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   if (!cast.ok()) return cast;
   result.history_dynamic = pair.DetectDynamic(kHistory);
   result.current_dynamic = pair.DetectDynamic(kCurrent);
+  if (config_.changed_objects_enabled) {
+    for (int s : {kHistory, kCurrent}) {
+      std::vector<std::uint32_t>& dynamic =
+          s == kHistory ? result.history_dynamic : result.current_dynamic;
+      const std::vector<std::uint32_t> changed =
+          pair.ChangedObjects(s, &result.examined_objects);
+      std::vector<std::uint32_t> merged;
+      merged.reserve(dynamic.size() + changed.size());
+      std::set_union(dynamic.begin(), dynamic.end(), changed.begin(), changed.end(),
+                     std::back_inserter(merged));
+      dynamic = std::move(merged);
+    }
+  }
   result.current_mending = pair.Mending(result.current_dynamic);
   result.time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

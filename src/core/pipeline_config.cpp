@@ -120,10 +120,14 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "height_guard_enabled", &m.dynamics.height_guard_enabled},
       {"low_dynamics", "height_guard_m", &m.dynamics.height_guard_m},
       {"low_dynamics", "guard_object_height_m", &m.dynamics.guard_object_height_m},
+      {"low_dynamics", "changed_objects_enabled", &m.dynamics.changed_objects_enabled},
+      {"low_dynamics", "changed_surface_distance_m", &m.dynamics.changed_surface_distance_m},
+      {"low_dynamics", "changed_min_fraction", &m.dynamics.changed_min_fraction},
       {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},
       {"map_update", "fuse_overlap_distance_m", &m.fusion.overlap_distance_m},
       {"map_update", "fuse_voxel_m", &m.fusion.voxel_m},
       {"map_update", "max_dynamic_fraction", &m.fusion.max_dynamic_fraction},
+      {"map_update", "propagate_radius_m", &m.fusion.propagate_radius_m},
       {"map_update", "num_threads", &m.num_threads},
   };
 }

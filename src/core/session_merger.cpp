@@ -12,6 +12,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "multisession_mapper/core/parallel_for.h"
+#include "multisession_mapper/core/dynamic_propagation.h"
 #include "multisession_mapper/core/voxel_index_table.h"
 #include "multisession_mapper/core/voxel_key.h"
 
@@ -98,6 +99,7 @@ std::string ChangeLogYaml(const MergeReport& report, const SessionRecord& record
   out << YAML::Key << "submaps_added" << YAML::Value << YAML::Flow << added;
   out << YAML::Key << "submaps_fused" << YAML::Value << YAML::Flow << fused;
   out << YAML::Key << "points_removed" << YAML::Value << report.points_removed;
+  out << YAML::Key << "points_propagated" << YAML::Value << report.points_propagated;
   out << YAML::Key << "points_mended" << YAML::Value << report.points_mended;
   out << YAML::Key << "history_changes" << YAML::Value << YAML::BeginSeq;
   for (const SubmapChange& c : report.changes) {
@@ -135,6 +137,9 @@ Status MapFusionConfig::Validate() const {
   if (!Finite(max_dynamic_fraction) || max_dynamic_fraction <= 0.0 ||
       max_dynamic_fraction > 1.0) {
     return Status::Error("fusion.max_dynamic_fraction must be in (0, 1]");
+  }
+  if (!Finite(propagate_radius_m) || propagate_radius_m < 0.0) {
+    return Status::Error("fusion.propagate_radius_m must be >= 0");
   }
   return Status::Ok();
 }
@@ -472,6 +477,36 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     }
   }
 
+  // Copies of the dynamic points in submaps the pairs did not examine (farther views).
+  if (config_.fusion.propagate_radius_m > 0.0) {
+    auto marks_of = [](const std::map<std::size_t, std::set<std::uint32_t>>& marks,
+                       std::size_t i) -> const std::set<std::uint32_t>* {
+      const auto it = marks.find(i);
+      return it == marks.end() ? nullptr : &it->second;
+    };
+    std::vector<MarkedCloud> clouds;
+    std::vector<std::pair<bool, std::size_t>> owners;  // (history?, index)
+    for (std::size_t h = 0; h < map->submaps.size(); ++h) {
+      if (map->submaps[h].state != SubmapState::kActive) continue;
+      clouds.push_back({&map->submaps[h].points, pose_of_history(h), marks_of(removed, h)});
+      owners.emplace_back(true, h);
+    }
+    for (std::size_t c = 0; c < session.submaps.size(); ++c) {
+      clouds.push_back(
+          {&session.submaps[c].points, pose_of_current(c), marks_of(current_dynamic, c)});
+      owners.emplace_back(false, c);
+    }
+    StatusOr<std::vector<std::vector<std::uint32_t>>> propagated =
+        FindCopiesOfMarked(config_.fusion.propagate_radius_m, config_.num_threads, clouds);
+    if (!propagated.ok()) return propagated.status();
+    for (std::size_t i = 0; i < clouds.size(); ++i) {
+      const std::vector<std::uint32_t>& found = propagated.value()[i];
+      if (found.empty()) continue;
+      auto& marks = owners[i].first ? removed : current_dynamic;
+      marks[owners[i].second].insert(found.begin(), found.end());
+      report.points_propagated += found.size();
+    }
+  }
   report.update_dynamics_s = SecondsSince(update_start);
   const auto fusion_start = std::chrono::steady_clock::now();
   // ---- Map update: remove, mend, fuse or add. ----

@@ -102,10 +102,14 @@ namespace ros_params {
   F(low_dynamics_voxel_size_m, g.dynamics.voxel_size_m)                                       \
   F(low_dynamics_height_guard_enabled, g.dynamics.height_guard_enabled)                       \
   F(low_dynamics_height_guard_m, g.dynamics.height_guard_m)                                   \
+  F(low_dynamics_changed_objects_enabled, g.dynamics.changed_objects_enabled)                 \
+  F(low_dynamics_changed_surface_distance_m, g.dynamics.changed_surface_distance_m)           \
+  F(low_dynamics_changed_min_fraction, g.dynamics.changed_min_fraction)                       \
   F(map_update_fuse_min_overlap_ratio, g.fusion.min_overlap_ratio)                            \
   F(map_update_fuse_overlap_distance_m, g.fusion.overlap_distance_m)                          \
   F(map_update_fuse_voxel_m, g.fusion.voxel_m)                                                \
-  F(map_update_max_dynamic_fraction, g.fusion.max_dynamic_fraction)
+  F(map_update_max_dynamic_fraction, g.fusion.max_dynamic_fraction)                          \
+  F(map_update_propagate_radius_m, g.fusion.propagate_radius_m)
 
 ScanMatchingConfig ToScanMatchingConfig(const core::OdometryConfig& o) {
   ScanMatchingConfig out = ScanMatchingConfig::__getDefault__();

@@ -30,6 +30,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <yaml-cpp/yaml.h>
@@ -57,7 +58,9 @@ const char kUsage[] =
     "  --align submap|start   truth alignment per submap (default) or per session start\n"
     "  --eval-range M     score only points within M of a scan origin of the other submap of a\n"
     "                     pair (25 = the detector's max_range_m; 0: every paired point)\n"
-    "  --per-object       list the vacated low-dynamic objects with their removed points\n"
+    "  --guard on|off|both  run with the height guard on, off or both (both)\n"
+    "  --per-object       list the vacated low-dynamic objects with their removed points, and\n"
+    "                     every object the changed-object step examined, with its truth\n"
     "  --compare-octomap  time OctoMap key lookups against the own voxel grid on the same rays\n"
     "  --json FILE        also write the figures as JSON\n"
     "  --set KEY=VALUE    override a detector parameter (seed_distance_m, support_radius_m,\n"
@@ -65,7 +68,12 @@ const char kUsage[] =
     "                     min_cluster_coarse_points, max_range_m, end_margin_m, rays_per_point,\n"
     "                     origin_spacing_m, dynamic_grow_radius_m, mending_distance_m,\n"
     "                     free_column_depth_m, column_clearance_m, guard_object_height_m,\n"
-    "                     ground_tolerance_m, ground_cell_m, own_ground_max_gap_m)\n";
+    "                     ground_tolerance_m, ground_cell_m, own_ground_max_gap_m,\n"
+    "                     changed_objects_enabled (0/1), changed_compare_range_m,\n"
+    "                     changed_grow_radius_m, changed_min_points, changed_max_extent_m,\n"
+    "                     changed_max_bottom_m, changed_min_planar_fraction,\n"
+    "                     changed_neighbour_radius_m, changed_surface_distance_m,\n"
+    "                     changed_min_compared, changed_min_fraction)\n";
 
 constexpr int kCanopy = 6;
 constexpr int kMovingCar = 9;
@@ -265,6 +273,7 @@ int main(int argc, char** argv) {
   long long max_pairs = 0;
   bool compare_octomap = false;
   bool per_object = false;
+  std::string guard_mode = "both";
   std::string json_path;
   std::vector<std::pair<std::string, double>> overrides;
   std::string json = "{";
@@ -289,6 +298,7 @@ int main(int argc, char** argv) {
     else if (arg == "--max-pairs") ok = next(&value) && msm::tools::ParseInt(value, &max_pairs);
     else if (arg == "--compare-octomap") compare_octomap = true;
     else if (arg == "--per-object") per_object = true;
+    else if (arg == "--guard") ok = next(&guard_mode) && (guard_mode == "on" || guard_mode == "off" || guard_mode == "both");
     else if (arg == "--json") ok = next(&json_path);
     else if (arg == "--set") {
       double v = 0.0;
@@ -385,6 +395,7 @@ int main(int argc, char** argv) {
   }
 
   for (bool guard : {true, false}) {
+    if ((guard && guard_mode == "off") || (!guard && guard_mode == "on")) continue;
     core::DynamicDetectionConfig config;
     config.height_guard_enabled = guard;
     if (voxel > 0.0) config.voxel_size_m = voxel;
@@ -407,6 +418,17 @@ int main(int argc, char** argv) {
       else if (key == "ground_tolerance_m") config.ground_tolerance_m = v;
       else if (key == "ground_cell_m") config.ground_cell_m = v;
       else if (key == "own_ground_max_gap_m") config.own_ground_max_gap_m = v;
+      else if (key == "changed_objects_enabled") config.changed_objects_enabled = v != 0.0;
+      else if (key == "changed_compare_range_m") config.changed_compare_range_m = v;
+      else if (key == "changed_grow_radius_m") config.changed_grow_radius_m = v;
+      else if (key == "changed_min_points") config.changed_min_points = static_cast<int>(v);
+      else if (key == "changed_max_extent_m") config.changed_max_extent_m = v;
+      else if (key == "changed_max_bottom_m") config.changed_max_bottom_m = v;
+      else if (key == "changed_min_planar_fraction") config.changed_min_planar_fraction = v;
+      else if (key == "changed_neighbour_radius_m") config.changed_neighbour_radius_m = v;
+      else if (key == "changed_surface_distance_m") config.changed_surface_distance_m = v;
+      else if (key == "changed_min_compared") config.changed_min_compared = static_cast<int>(v);
+      else if (key == "changed_min_fraction") config.changed_min_fraction = v;
       else {
         std::fprintf(stderr, "dynamic_detection_benchmark: unknown --set key %s\n", key.c_str());
         return 2;
@@ -426,6 +448,11 @@ int main(int argc, char** argv) {
     }
     std::vector<double> times, cpu_times;
     std::size_t mending = 0;
+    struct Examined {
+      core::DynamicDetectionResult::ExaminedObject object;
+      std::size_t submap;
+    };
+    std::vector<Examined> examined;
     for (const auto& [h, c] : pairs) {
       const Eigen::Isometry3d T_current_history = C.T_world_submap[c].inverse() * H.T_world_submap[h];
       const std::clock_t cpu_start = std::clock();
@@ -437,6 +464,9 @@ int main(int argc, char** argv) {
         continue;
       }
       times.push_back(result.value().time_s);
+      for (const auto& object : result.value().examined_objects) {
+        examined.push_back({object, object.side == 0 ? h : c});
+      }
       mending += result.value().current_mending.size();
       for (std::uint32_t i : result.value().history_dynamic) flags[0][h][i] |= 1;
       for (std::uint32_t i : result.value().current_dynamic) flags[1][c][i] |= 1;
@@ -531,6 +561,39 @@ int main(int argc, char** argv) {
       }
     }
     auto pct = [](long a, long b) { return b > 0 ? 100.0 * a / b : 0.0; };
+    // Changed-object step by the truth of each examined object's majority label.
+    std::map<std::string, std::pair<long, long>> examined_by_truth;  // objects, changed
+    for (const Examined& e : examined) {
+      const SessionData& d = e.object.side == 0 ? H : C;
+      std::map<std::uint32_t, int> votes;
+      for (std::uint32_t i : e.object.points) ++votes[d.objects[e.submap][i]];
+      std::uint32_t id = 0;
+      int best = 0;
+      for (const auto& [object_id, count] : votes) {
+        if (count > best) std::tie(id, best) = std::tie(object_id, count);
+      }
+      const auto it = objects.find(id);
+      const std::string cls = id == 0 || it == objects.end() ? "none" : it->second.cls;
+      const std::string truth =
+          cls + (is_low(id) ? (is_replaced(id) ? " low replaced" : " low vacated") : " static");
+      auto& counts = examined_by_truth[truth];
+      ++counts.first;
+      counts.second += e.object.changed;
+      if (per_object) {
+        std::printf("    examined %s %s/%zu object %u (%s): %zu points, %d/%d off the other's "
+                    "surface (%.0f %%; %d seen through)%s\n",
+                    e.object.side == 0 ? "history" : "current", d.name.c_str(), e.submap, id,
+                    truth.c_str(),
+                    e.object.points.size(), e.object.off_surface, e.object.compared,
+                    pct(e.object.off_surface, e.object.compared), e.object.seen_through,
+                    e.object.changed ? ": CHANGED" : "");
+      }
+    }
+    std::printf("  changed-object step: examined objects by truth (majority label): ");
+    for (const auto& [truth, counts] : examined_by_truth) {
+      std::printf("%s %ld changed of %ld; ", truth.c_str(), counts.second, counts.first);
+    }
+    std::printf("\n");
     std::printf("height guard %s (voxel %.2f m):\n", guard ? "ON " : "OFF", config.voxel_size_m);
     std::printf("  low-dynamic DA %.2f %% (%ld/%ld removed; %ld low-dynamic points whose place "
                 "the other session did not see)\n",
@@ -573,7 +636,7 @@ int main(int argc, char** argv) {
                   "\"static_sa\": %.5f, \"static_sa_near\": %.5f, \"canopy_sa\": %.5f, "
                   "\"canopy_points\": %ld, \"pairs\": %zu, \"median_pair_s\": %.4f, "
                   "\"max_pair_s\": %.4f, \"voxel_size_m\": %.3f}",
-                  guard ? "" : ", ", guard ? "on" : "off", pct(low_removed, low) / 100.0, low,
+                  json.size() > 1 ? ", " : "", guard ? "on" : "off", pct(low_removed, low) / 100.0, low,
                   pct(static_kept, static_all) / 100.0, pct(static_near_kept, static_near) / 100.0,
                   pct(canopy_kept, canopy) / 100.0, canopy, times.size(), Median(times), max_time,
                   config.voxel_size_m);

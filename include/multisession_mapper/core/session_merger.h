@@ -55,6 +55,12 @@ struct MapFusionConfig {
   /// A pair whose detection marks more than this fraction of either submap as dynamic is
   /// treated as misaligned and left unchanged (removing that much would damage the map).
   double max_dynamic_fraction = 0.25;
+  /// Copies of the dynamic points elsewhere in the map [m] (0: off): the pairs examine only
+  /// points near the other session's scan origins, while a parked car is also held, sparsely,
+  /// by the submaps that saw it from farther away (up to 60 m) and by submaps the loops did
+  /// not pair. After the detections, every point of an active history submap or of a new
+  /// submap within this distance of a dynamic point (in the map frame) is dynamic as well.
+  double propagate_radius_m = 0.2;
 
   Status Validate() const;
 };
@@ -90,6 +96,9 @@ struct MergeReport {
   std::size_t submaps_added = 0;    ///< new submaps kept as submaps
   std::size_t submaps_fused = 0;    ///< new submaps fused into history submaps
   std::size_t points_removed = 0;
+  /// Of the removed and left-out points, those found as copies of dynamic points in other
+  /// submaps (MapFusionConfig::propagate_radius_m).
+  std::size_t points_propagated = 0;
   std::size_t points_mended = 0;
   std::size_t points_fused = 0;     ///< static points of fused submaps new to the history
   std::vector<SubmapChange> changes;
