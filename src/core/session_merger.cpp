@@ -11,8 +11,8 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/dynamic_propagation.h"
+#include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/voxel_index_table.h"
 #include "multisession_mapper/core/voxel_key.h"
 
