@@ -47,6 +47,14 @@ struct Side {
   std::vector<Eigen::Vector3f> normals;
 };
 
+// Some origin lies within sqrt(range_sq) of p.
+bool NearAny(const PointVector& origins, const Eigen::Vector3d& p, double range_sq) {
+  for (const Eigen::Vector3d& o : origins) {
+    if ((o - p).squaredNorm() <= range_sq) return true;
+  }
+  return false;
+}
+
 PointVector ThinOrigins(const Submap& submap, const Pose3& T, double spacing_m) {
   PointVector kept;
   for (const SubmapScanRecord& scan : submap.scans) {
@@ -138,14 +146,7 @@ class PairDetection {
       // dynamic, no queries) and close to the other (never mended).
       const double range_sq = config_.max_range_m * config_.max_range_m;
       for (std::size_t i = 0; i < n; ++i) {
-        bool in_range = false;
-        for (const Eigen::Vector3d& o : sides_[1 - s].origins) {
-          if ((o - side.points[i]).squaredNorm() <= range_sq) {
-            in_range = true;
-            break;
-          }
-        }
-        if (!in_range) {
+        if (!NearAny(sides_[1 - s].origins, side.points[i], range_sq)) {
           side.common[i] = 1;
           side.nearest_other_m[i] = 0.0f;
           continue;
@@ -304,17 +305,11 @@ class PairDetection {
     const int other = 1 - s;
     const std::size_t n = side.points.size();
     const double range_sq = config_.changed_compare_range_m * config_.changed_compare_range_m;
-    auto near_any = [range_sq](const PointVector& origins, const Eigen::Vector3d& p) {
-      for (const Eigen::Vector3d& o : origins) {
-        if ((o - p).squaredNorm() <= range_sq) return true;
-      }
-      return false;
-    };
     std::vector<std::uint8_t> eligible(n, 0);
     for (std::size_t i = 0; i < n; ++i) {
       eligible[i] = side.height_m[i] >= config_.ground_tolerance_m &&
-                    near_any(side.origins, side.points[i]) &&
-                    near_any(sides_[other].origins, side.points[i]);
+                    NearAny(side.origins, side.points[i], range_sq) &&
+                    NearAny(sides_[other].origins, side.points[i], range_sq);
     }
     std::vector<std::uint32_t> changed, cluster;
     for (std::size_t seed = 0; seed < n; ++seed) {

@@ -6,8 +6,7 @@
 
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/point_index.h"
-#include "multisession_mapper/core/voxel_index_table.h"
-#include "multisession_mapper/core/voxel_key.h"
+#include "multisession_mapper/core/voxel_occupancy.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -21,38 +20,24 @@ StatusOr<std::vector<std::vector<std::uint32_t>>> FindCopiesOfMarked(
   // The marked points in the map frame, and their voxels (edge radius_m): a point whose voxel
   // has no marked neighbour voxel is rejected before the exact kd-tree test.
   PointVector marked_map;
-  VoxelIndexTable voxels;
+  VoxelOccupancy near_marked(radius_m);
   for (const MarkedCloud& c : clouds) {
     if (c.points == nullptr) return Status::Error("propagation: a cloud without points");
     if (c.marked == nullptr) continue;
     for (std::uint32_t k : *c.marked) {
       if (k >= c.points->size()) continue;
       marked_map.push_back(c.T_map * (*c.points)[k]);
-      voxels.FindOrInsert(ToVoxelKey(marked_map.back(), radius_m), 0);
+      near_marked.Add(marked_map.back());
     }
   }
   if (marked_map.empty()) return found;
   StatusOr<PointIndex> index = PointIndex::Create(std::move(marked_map));
   if (!index.ok()) return index.status();
-  auto near_marked_voxel = [&](const Eigen::Vector3d& p) {
-    const VoxelKey k = ToVoxelKey(p, radius_m);
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          if (voxels.Find(VoxelKey(k.x() + dx, k.y() + dy, k.z() + dz)) !=
-              VoxelIndexTable::kEmpty) {
-            return true;
-          }
-        }
-      }
-    }
-    return false;
-  };
   ParallelFor(clouds.size(), num_threads, [&](std::size_t i) {
     const MarkedCloud& c = clouds[i];
     for (std::size_t k = 0; k < c.points->size(); ++k) {
       const Eigen::Vector3d p = c.T_map * (*c.points)[k];
-      if (!near_marked_voxel(p)) continue;
+      if (!near_marked.Near(p)) continue;
       if (c.marked != nullptr && c.marked->count(static_cast<std::uint32_t>(k))) continue;
       if (index.value().CountWithin(p, radius_m, 1) > 0) {
         found[i].push_back(static_cast<std::uint32_t>(k));

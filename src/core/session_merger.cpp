@@ -13,8 +13,7 @@
 
 #include "multisession_mapper/core/dynamic_propagation.h"
 #include "multisession_mapper/core/parallel_for.h"
-#include "multisession_mapper/core/voxel_index_table.h"
-#include "multisession_mapper/core/voxel_key.h"
+#include "multisession_mapper/core/voxel_occupancy.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -27,32 +26,6 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 bool Finite(double v) { return std::isfinite(v); }
-
-// Occupied voxels of a point set, for "is there a point within about one voxel" tests.
-// Open addressing (VoxelIndexTable): every point of the map goes in at each merge, and the new
-// session's points test 27 voxels each.
-class VoxelOccupancy {
- public:
-  explicit VoxelOccupancy(double voxel_m) : voxel_m_(voxel_m) {}
-  void Add(const Eigen::Vector3d& p) { voxels_.FindOrInsert(ToVoxelKey(p, voxel_m_), 0); }
-  bool Occupied(const Eigen::Vector3d& p) const { return Contains(ToVoxelKey(p, voxel_m_)); }
-  // The point's voxel or one of its 26 neighbours is occupied.
-  bool Near(const Eigen::Vector3d& p) const {
-    const VoxelKey k = ToVoxelKey(p, voxel_m_);
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz)
-          if (Contains(VoxelKey(k.x() + dx, k.y() + dy, k.z() + dz))) return true;
-    return false;
-  }
-
- private:
-  bool Contains(const VoxelKey& key) const {
-    return voxels_.Find(key) != VoxelIndexTable::kEmpty;
-  }
-  double voxel_m_;
-  VoxelIndexTable voxels_;
-};
 
 Information6 DiagonalInformation(double sigma_t, double sigma_r) {
   Information6 info = Information6::Zero();
