@@ -1,8 +1,10 @@
 #include "multisession_mapper/core/kdtree_target.h"
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -64,6 +66,39 @@ TEST(KdTreeTargetTest, NearestWithinAgreesWithNearestInsideTheRadiusOnly) {
   }
   EXPECT_GT(inside, 50);
   EXPECT_LT(inside, 450);
+}
+
+TEST(KdTreeTargetTest, WarmStartedFindMatchesGivesTheColdMatches) {
+  // An ICP's second search: the queries moved a little, the previous matches bound the search.
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  std::normal_distribution<double> step(0.0, 0.5);
+  const KdTreeTarget target = KdTreeTarget::Create(RandomCloud(&rng)).value();
+  PointVector queries;
+  for (int q = 0; q < 2000; ++q) queries.emplace_back(u(rng), u(rng), u(rng));
+  std::vector<std::uint8_t> found;
+  std::vector<TargetMatch> matches;
+  target.FindMatches(queries, 3.0, false, nullptr, &found, &matches);
+  const std::vector<TargetMatch> first = matches;
+  const std::vector<std::uint8_t> first_found = found;
+  PointVector moved = queries;
+  for (Eigen::Vector3d& q : moved) q += Eigen::Vector3d(step(rng), step(rng), step(rng));
+  target.FindMatches(moved, 3.0, /*warm_start=*/true, nullptr, &found, &matches);
+  int hits = 0;
+  int changed = 0;  // nearest point differs from the previous one: the bound is not the answer
+  for (std::size_t i = 0; i < moved.size(); ++i) {
+    TargetMatch cold;
+    const bool ok = target.FindMatch(moved[i], 3.0, &cold);
+    ASSERT_EQ(found[i] != 0, ok) << "query " << i;
+    if (!ok) continue;
+    ++hits;
+    EXPECT_EQ(matches[i].point, cold.point);
+    EXPECT_EQ(matches[i].distance_sq, cold.distance_sq);
+    EXPECT_EQ(matches[i].has_normal, cold.has_normal);
+    if (first_found[i] != 0 && first[i].point != cold.point) ++changed;
+  }
+  EXPECT_GT(hits, 1000);
+  EXPECT_GT(changed, 200);
 }
 
 TEST(KdTreeTargetTest, WallPointsGetWallNormals) {

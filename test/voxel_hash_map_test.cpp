@@ -45,6 +45,50 @@ TEST(VoxelHashMapTest, NearestNeighbourMatchesBruteForceWithinOneVoxel) {
   EXPECT_GT(found, 1000);
 }
 
+TEST(VoxelHashMapTest, WarmStartedFindMatchesGivesTheColdMatches) {
+  // What an ICP does: search, move the queries a little, search again bounded by the previous
+  // matches. The bound must not change a single match, on the parallel and the sequential
+  // path, also for queries that move away from their previous match or out of reach.
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-15.0, 15.0);
+  std::normal_distribution<double> step(0.0, 0.15);
+  PointVector pts;
+  for (int i = 0; i < 20000; ++i) pts.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+  map.AddPoints(pts);
+  PointVector queries;
+  for (int i = 0; i < 3000; ++i) queries.emplace_back(u(rng), u(rng), u(rng) * 0.3);
+  for (const bool normals : {false, true}) {
+    map.SetNormalsEnabled(normals);
+    WorkerPool pool(2);
+    std::vector<std::uint8_t> found;
+    std::vector<TargetMatch> matches;
+    map.FindMatches(queries, 0.6, false, &pool, &found, &matches);
+    PointVector moved = queries;
+    for (Eigen::Vector3d& q : moved) q += Eigen::Vector3d(step(rng), step(rng), step(rng));
+    map.FindMatches(moved, 0.6, /*warm_start=*/true, &pool, &found, &matches);
+    std::vector<std::uint8_t> cold_found;
+    std::vector<TargetMatch> cold;
+    map.FindMatches(moved, 0.6, false, &pool, &cold_found, &cold);
+    int hits = 0;
+    int changed = 0;  // queries whose nearest point is not the previous one: the bound matters
+    std::vector<std::uint8_t> first_found;
+    std::vector<TargetMatch> first;
+    map.FindMatches(queries, 0.6, false, &pool, &first_found, &first);
+    for (std::size_t i = 0; i < moved.size(); ++i) {
+      ASSERT_EQ(found[i], cold_found[i]) << "query " << i;
+      if (found[i] == 0) continue;
+      ++hits;
+      EXPECT_EQ(matches[i].point, cold[i].point);
+      EXPECT_EQ(matches[i].distance_sq, cold[i].distance_sq);
+      EXPECT_EQ(matches[i].has_normal, cold[i].has_normal);
+      if (first_found[i] != 0 && first[i].point != cold[i].point) ++changed;
+    }
+    EXPECT_GT(hits, 1000);
+    EXPECT_GT(changed, 100);
+  }
+}
+
 TEST(VoxelHashMapTest, ParallelFindMatchesGivesTheSequentialMatches) {
   VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
   std::mt19937 rng(9);
@@ -59,7 +103,7 @@ TEST(VoxelHashMapTest, ParallelFindMatchesGivesTheSequentialMatches) {
     std::vector<std::uint8_t> found;
     std::vector<TargetMatch> matches;
     WorkerPool pool(2);
-    map.FindMatches(queries, 0.6, &pool, &found, &matches);
+    map.FindMatches(queries, 0.6, /*warm_start=*/false, &pool, &found, &matches);
     ASSERT_EQ(found.size(), queries.size());
     ASSERT_EQ(matches.size(), queries.size());
     int hits = 0;
@@ -72,7 +116,9 @@ TEST(VoxelHashMapTest, ParallelFindMatchesGivesTheSequentialMatches) {
       EXPECT_EQ(matches[i].point, expected.point);
       EXPECT_EQ(matches[i].distance_sq, expected.distance_sq);
       EXPECT_EQ(matches[i].has_normal, expected.has_normal);
-      if (expected.has_normal) EXPECT_EQ(matches[i].normal, expected.normal);
+      if (expected.has_normal) {
+        EXPECT_EQ(matches[i].normal, expected.normal);
+      }
     }
     EXPECT_GT(hits, 1000);
   }

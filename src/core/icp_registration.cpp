@@ -158,8 +158,9 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     if (search) {
       moved_source.resize(source.size());
       for (std::size_t i = 0; i < source.size(); ++i) moved_source[i] = pose * source[i];
-      target.FindMatches(moved_source, max_correspondence_distance_m, pool_.get(), &found,
-                         &matches);
+      // From the second search on, the last search's matches bound this one (same pairs).
+      target.FindMatches(moved_source, max_correspondence_distance_m, result.searches > 0,
+                         pool_.get(), &found, &matches);
       pairs_found.clear();
       for (std::size_t i = 0; i < source.size(); ++i) {
         if (found[i] != 0) pairs_found.push_back({i, matches[i]});

@@ -78,8 +78,13 @@ const PointVector& KdTreeTarget::points() const { return impl_->points; }
 
 bool KdTreeTarget::NearestWithin(const Eigen::Vector3d& query, double max_distance_m,
                                  std::size_t* index, double* distance_sq) const {
+  return NearestWithinSq(query, max_distance_m * max_distance_m, index, distance_sq);
+}
+
+bool KdTreeTarget::NearestWithinSq(const Eigen::Vector3d& query, double bound_sq,
+                                   std::size_t* index, double* distance_sq) const {
   if (empty()) return false;
-  BoundedNearest<std::size_t> result(max_distance_m * max_distance_m);
+  BoundedNearest<std::size_t> result(bound_sq);
   impl_->tree->findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, false));
   if (!result.found()) return false;
   *index = result.index();
@@ -89,9 +94,30 @@ bool KdTreeTarget::NearestWithin(const Eigen::Vector3d& query, double max_distan
 
 bool KdTreeTarget::FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                              TargetMatch* match) const {
+  return MatchWithin(query, max_distance_m * max_distance_m, match);
+}
+
+void KdTreeTarget::FindMatches(const PointVector& queries, double max_distance_m,
+                               bool warm_start, WorkerPool* /*pool*/,
+                               std::vector<std::uint8_t>* found,
+                               std::vector<TargetMatch>* matches) const {
+  const std::size_t n = queries.size();
+  const bool hints = warm_start && found->size() == n && matches->size() == n;
+  if (!hints) found->assign(n, 0);
+  matches->resize(n);
+  const double max_sq = max_distance_m * max_distance_m;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double bound_sq =
+        WarmStartBoundSq(hints && (*found)[i] != 0, (*matches)[i], queries[i], max_sq);
+    (*found)[i] = MatchWithin(queries[i], bound_sq, &(*matches)[i]) ? 1 : 0;
+  }
+}
+
+bool KdTreeTarget::MatchWithin(const Eigen::Vector3d& query, double bound_sq,
+                               TargetMatch* match) const {
   std::size_t index = 0;
   double dist_sq = 0.0;
-  if (!NearestWithin(query, max_distance_m, &index, &dist_sq)) return false;
+  if (!NearestWithinSq(query, bound_sq, &index, &dist_sq)) return false;
   match->point = impl_->points[index];
   match->distance_sq = dist_sq;
   match->has_normal = impl_->planar[index];

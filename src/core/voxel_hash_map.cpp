@@ -65,7 +65,7 @@ StatusOr<VoxelHashMap> VoxelHashMap::Create(const VoxelHashMapConfig& config) {
 VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
     : config_(config),
       inv_voxel_size_(1.0 / config.voxel_size_m),
-      stride_(2 + static_cast<std::size_t>(config.max_points_per_voxel)) {}
+      stride_(static_cast<std::size_t>(config.max_points_per_voxel)) {}
 
 void VoxelHashMap::ClearNeighbourCache() {
   if (neighbour_cache_.empty()) return;
@@ -90,6 +90,7 @@ std::uint32_t VoxelHashMap::NeighbourOffset(const VoxelIndex& center) const {
 void VoxelHashMap::Clear() {
   ClearNeighbourCache();
   voxels_.clear();
+  boxes_.clear();
   points_.clear();
   normals_cached_ = false;
   removed_once_ = false;
@@ -114,6 +115,7 @@ int VoxelHashMap::FindOrInsert(const VoxelIndex& index) {
   ClearNeighbourCache();  // a new voxel: cached neighbourhoods may miss it
   voxels_.emplace_back();
   voxels_.back().index = index;
+  boxes_.emplace_back();
   points_.resize(voxels_.size() * stride_);
   return static_cast<int>(found.first);
 }
@@ -153,21 +155,21 @@ void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
     const VoxelIndex index = IndexOf(p);
     const int id = FindOrInsert(index);
     Voxel& voxel = voxels_[id];
-    if (voxel.count >= max_points) continue;
+    SearchBox& box = boxes_[id];
+    if (box.count >= max_points) continue;
     Eigen::Vector3d* points = PointsOf(id);
     if (spacing_sq > 0.0 &&
-        std::any_of(points, points + voxel.count,
+        std::any_of(points, points + box.count,
                     [&](const Eigen::Vector3d& q) { return (q - p).squaredNorm() < spacing_sq; })) {
       continue;
     }
-    Eigen::Vector3d* bounds = BlockOf(id);
-    if (voxel.count == 0) {
-      bounds[0] = bounds[1] = p;
+    if (box.count == 0) {
+      box.low = box.high = p;
     } else {
-      bounds[0] = bounds[0].cwiseMin(p);
-      bounds[1] = bounds[1].cwiseMax(p);
+      box.low = box.low.cwiseMin(p);
+      box.high = box.high.cwiseMax(p);
     }
-    points[voxel.count++] = p;
+    points[box.count++] = p;
     if (voxel.last_insert_epoch != epoch_) {
       voxel.last_insert_epoch = epoch_;
       changed.push_back(index);
@@ -185,8 +187,8 @@ void VoxelHashMap::InvalidateNormalsAround(const VoxelIndex& index) {
         const int id = Find(index + VoxelIndex(dx, dy, dz));
         if (id < 0) continue;
         const Voxel& voxel = voxels_[id];
-        voxel.normal_states.assign(voxel.count, NormalState::kUnknown);
-        voxel.normals.resize(voxel.count);
+        voxel.normal_states.assign(boxes_[id].count, NormalState::kUnknown);
+        voxel.normals.resize(boxes_[id].count);
       }
     }
   }
@@ -197,17 +199,19 @@ void VoxelHashMap::RemoveFarVoxels(const Eigen::Vector3d& position_m) {
   // Stable compaction of voxels_ and their point blocks.
   std::size_t kept = 0;
   for (std::size_t id = 0; id < voxels_.size(); ++id) {
-    const Voxel& voxel = voxels_[id];
-    if (voxel.count == 0 || (PointsOf(id)[0] - position_m).squaredNorm() > max_sq) continue;
+    const std::uint32_t count = boxes_[id].count;
+    if (count == 0 || (PointsOf(id)[0] - position_m).squaredNorm() > max_sq) continue;
     if (kept != id) {
-      std::copy_n(BlockOf(id), 2 + voxel.count, BlockOf(kept));
+      std::copy_n(PointsOf(id), count, PointsOf(kept));
       voxels_[kept] = std::move(voxels_[id]);
+      boxes_[kept] = boxes_[id];
     }
     ++kept;
   }
   if (kept == voxels_.size()) return;
   ClearNeighbourCache();  // ids moved
   voxels_.resize(kept);
+  boxes_.resize(kept);
   points_.resize(kept * stride_);
   RebuildTable();
 }
@@ -216,52 +220,70 @@ bool VoxelHashMap::FindMatch(const Eigen::Vector3d& query, double max_distance_m
                              TargetMatch* match) const {
   if (voxels_.empty() || !(max_distance_m > 0.0)) return false;
   const VoxelIndex center = IndexOf(query);
-  return MatchAround(query, center, NeighbourIds(center), max_distance_m, match);
+  return MatchAround(query, center, NeighbourIds(center), max_distance_m * max_distance_m, match);
 }
 
 void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m,
-                               WorkerPool* pool,
+                               bool warm_start, WorkerPool* pool,
                                std::vector<std::uint8_t>* found,
                                std::vector<TargetMatch>* matches) const {
   // Below this many queries a second thread costs more than it saves.
   constexpr std::size_t kMinParallelQueries = 256;
   constexpr std::size_t kBlock = 128;  // queries per work item
   const std::size_t n = queries.size();
-  if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries || voxels_.empty() ||
-      !(max_distance_m > 0.0)) {
-    RegistrationTarget::FindMatches(queries, max_distance_m, nullptr, found, matches);
+  if (voxels_.empty() || !(max_distance_m > 0.0)) {
+    found->assign(n, 0);
+    matches->resize(n);
     return;
   }
-  found->assign(n, 0);
-  matches->resize(n);
+  const double max_sq = max_distance_m * max_distance_m;
+  const bool hints = warm_start && found->size() == n && matches->size() == n;
+  // Squared bound of query i's search (the neighbour voxels are visited in a fixed order).
+  auto bound_sq = [&](std::size_t i) {
+    return WarmStartBoundSq(hints && (*found)[i] != 0, (*matches)[i], queries[i], max_sq);
+  };
+  if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries) {
+    if (!hints) found->assign(n, 0);
+    matches->resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const VoxelIndex center = IndexOf(queries[i]);
+      const double bound = bound_sq(i);
+      (*found)[i] =
+          MatchAround(queries[i], center, NeighbourIds(center), bound, &(*matches)[i]) ? 1 : 0;
+    }
+    return;
+  }
   // The neighbour cache's only writer is this loop; the parallel part below only reads.
   std::vector<VoxelIndex> centers(n);
   std::vector<std::uint32_t> offsets(n);
+  std::vector<double> bounds(n);
   for (std::size_t i = 0; i < n; ++i) {
     centers[i] = IndexOf(queries[i]);
     offsets[i] = NeighbourOffset(centers[i]);
+    bounds[i] = bound_sq(i);
   }
+  found->assign(n, 0);
+  matches->resize(n);
   const std::int32_t* ids = neighbour_ids_.data();
   pool->Run((n + kBlock - 1) / kBlock, [&](std::size_t block) {
     const std::size_t end = std::min(n, (block + 1) * kBlock);
     for (std::size_t i = block * kBlock; i < end; ++i) {
       (*found)[i] =
-          MatchAround(queries[i], centers[i], ids + offsets[i], max_distance_m, &(*matches)[i])
-              ? 1
-              : 0;
+          MatchAround(queries[i], centers[i], ids + offsets[i], bounds[i], &(*matches)[i]) ? 1
+                                                                                            : 0;
     }
   });
 }
 
 bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,
-                               const std::int32_t* ids, double max_distance_m,
+                               const std::int32_t* ids, double bound_sq,
                                TargetMatch* match) const {
   const double size = config_.voxel_size_m;
   // Distance from the query to the low / high face of its own voxel, per axis.
   const Eigen::Vector3d low = query - center.cast<double>() * size;
   const Eigen::Vector3d high = Eigen::Vector3d::Constant(size) - low;
 
-  double best_sq = max_distance_m * max_distance_m;
+  double best_sq = bound_sq;
   int best_id = -1;
   std::size_t best_index = 0;
   for (int k = 0; k < kNeighbourhood; ++k) {
@@ -276,11 +298,11 @@ bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& c
       if (gx * gx + gy * gy + gz * gz >= best_sq) continue;
     }
     // Same test against the box of the voxel's points, tighter (surfaces are thin).
-    const Eigen::Vector3d* block = BlockOf(static_cast<std::size_t>(id));
-    const Eigen::Vector3d gap = (block[0] - query).cwiseMax(query - block[1]).cwiseMax(0.0);
+    const SearchBox& box = boxes_[id];
+    const Eigen::Vector3d gap = (box.low - query).cwiseMax(query - box.high).cwiseMax(0.0);
     if (gap.squaredNorm() >= best_sq) continue;
-    const Eigen::Vector3d* pts = block + 2;
-    const std::size_t n = voxels_[id].count;
+    const Eigen::Vector3d* pts = PointsOf(static_cast<std::size_t>(id));
+    const std::size_t n = box.count;
     for (std::size_t i = 0; i < n; ++i) {
       const double d = (pts[i] - query).squaredNorm();
       if (d < best_sq) {
@@ -300,9 +322,10 @@ bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& c
     match->has_normal = false;
     return true;
   }
-  if (best_voxel->normal_states.size() != best_voxel->count) {
-    best_voxel->normal_states.resize(best_voxel->count, NormalState::kUnknown);
-    best_voxel->normals.resize(best_voxel->count);
+  const std::uint32_t best_count = boxes_[best_id].count;
+  if (best_voxel->normal_states.size() != best_count) {
+    best_voxel->normal_states.resize(best_count, NormalState::kUnknown);
+    best_voxel->normals.resize(best_count);
   }
   NormalState& state = best_voxel->normal_states[best_index];
   if (state == NormalState::kUnknown) {
@@ -326,7 +349,7 @@ VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
         const int id = Find(index + VoxelIndex(dx, dy, dz));
         if (id < 0) continue;
         const Eigen::Vector3d* points = PointsOf(static_cast<std::size_t>(id));
-        for (std::size_t i = 0; i < voxels_[id].count; ++i) {
+        for (std::size_t i = 0; i < boxes_[id].count; ++i) {
           const Eigen::Vector3d& q = points[i];
           if ((q - p).squaredNorm() <= radius_sq) acc.Add(q - p);  // centred: better conditioned
         }
@@ -340,14 +363,14 @@ PointVector VoxelHashMap::Points() const {
   PointVector out;
   out.reserve(NumPoints());
   for (std::size_t id = 0; id < voxels_.size(); ++id) {
-    out.insert(out.end(), PointsOf(id), PointsOf(id) + voxels_[id].count);
+    out.insert(out.end(), PointsOf(id), PointsOf(id) + boxes_[id].count);
   }
   return out;
 }
 
 std::size_t VoxelHashMap::NumPoints() const {
   std::size_t n = 0;
-  for (const Voxel& voxel : voxels_) n += voxel.count;
+  for (const SearchBox& box : boxes_) n += box.count;
   return n;
 }
 

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -41,6 +42,11 @@ class KdTreeTarget : public RegistrationTarget {
 
   bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                  TargetMatch* match) const override;
+  /// FindMatch per query; with `warm_start` each query's search is bounded by the distance to
+  /// its previous match (WarmStartBoundSq): same results, fewer tree branches. `pool` unused.
+  void FindMatches(const PointVector& queries, double max_distance_m, bool warm_start,
+                   WorkerPool* pool, std::vector<std::uint8_t>* found,
+                   std::vector<TargetMatch>* matches) const override;
   bool empty() const override;
 
   /// Index of the nearest point within `max_distance_m` and its squared distance [m^2];
@@ -55,6 +61,10 @@ class KdTreeTarget : public RegistrationTarget {
 
  private:
   struct Impl;
+  /// Nearest point closer than sqrt(bound_sq) with its normal; false when there is none.
+  bool MatchWithin(const Eigen::Vector3d& query, double bound_sq, TargetMatch* match) const;
+  bool NearestWithinSq(const Eigen::Vector3d& query, double bound_sq, std::size_t* index,
+                       double* distance_sq) const;
   explicit KdTreeTarget(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };

@@ -4,6 +4,7 @@
 // registration, KdTreeTarget), so the same IcpRegistration serves both.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -25,6 +26,18 @@ struct TargetMatch {
   double distance_sq = 0.0;  ///< squared distance query-point [m^2]
 };
 
+/// Squared search radius of a warm-started query (see RegistrationTarget::FindMatches): the
+/// distance to its previous match, which is still in the unchanged target, so the nearest
+/// point is at most that far; at most `max_sq`. A search that accepts only points closer than
+/// this visits the candidates that can win in the same order as an unbounded one, so it picks
+/// the same point. The margin keeps the previous match itself inside despite rounding.
+inline double WarmStartBoundSq(bool found_before, const TargetMatch& previous,
+                               const Eigen::Vector3d& query, double max_sq) {
+  if (!found_before) return max_sq;
+  const double d_sq = (previous.point - query).squaredNorm();
+  return std::min(max_sq, d_sq * (1.0 + 1e-9) + 1e-18);
+}
+
 class RegistrationTarget {
  public:
   virtual ~RegistrationTarget() = default;
@@ -39,10 +52,15 @@ class RegistrationTarget {
   /// (*matches)[i]. Results are those of one FindMatch per query in order. A `pool` (may be
   /// null) lets an implementation that allows it search on the pool's threads (VoxelHashMap
   /// without normals); this default runs FindMatch in order on the calling thread.
-  virtual void FindMatches(const PointVector& queries, double max_distance_m, WorkerPool* pool,
-                           std::vector<std::uint8_t>* found,
+  /// `warm_start`: on entry, *found / *matches hold this target's answer for the same queries
+  /// at nearby positions (the previous iteration of an ICP; the target has not changed since).
+  /// An implementation may bound the search by the distance to the previous match (VoxelHashMap
+  /// does); the results are the same as without. This default ignores it.
+  virtual void FindMatches(const PointVector& queries, double max_distance_m, bool warm_start,
+                           WorkerPool* pool, std::vector<std::uint8_t>* found,
                            std::vector<TargetMatch>* matches) const {
     (void)pool;
+    (void)warm_start;
     found->assign(queries.size(), 0);
     matches->resize(queries.size());
     for (std::size_t i = 0; i < queries.size(); ++i) {

@@ -67,9 +67,11 @@ class VoxelHashMap : public RegistrationTarget {
                  TargetMatch* match) const override;
   /// With normals disabled and a pool of 2+ threads: the neighbourhoods of all queries are
   /// looked up (and cached) on the calling thread, then the nearest points are searched on
-  /// the pool's threads. Same results as FindMatch per query; otherwise it is that loop.
-  void FindMatches(const PointVector& queries, double max_distance_m, WorkerPool* pool,
-                   std::vector<std::uint8_t>* found,
+  /// the pool's threads. With `warm_start`, a query whose previous match is still within
+  /// max_distance_m searches only for points closer than that match (most neighbour voxels
+  /// are then skipped by their boxes). Same results as FindMatch per query in both cases.
+  void FindMatches(const PointVector& queries, double max_distance_m, bool warm_start,
+                   WorkerPool* pool, std::vector<std::uint8_t>* found,
                    std::vector<TargetMatch>* matches) const override;
   /// false: FindMatch returns no normals (has_normal false) and computes none, e.g. when the
   /// ICP takes its normals from the source scan (the normals are most of a match's cost).
@@ -87,11 +89,19 @@ class VoxelHashMap : public RegistrationTarget {
   enum class NormalState : std::uint8_t { kUnknown, kPlanar, kNotPlanar };
   struct Voxel {
     VoxelIndex index = VoxelIndex::Zero();
-    std::uint32_t count = 0;  ///< points stored, in points_ at [id * stride_, + count)
     // Cache filled by FindMatch; reset when this voxel or a neighbour gains points.
     mutable std::vector<Eigen::Vector3d> normals;
     mutable std::vector<NormalState> normal_states;
     std::uint32_t last_insert_epoch = 0;  // AddPoints call that last inserted here
+  };
+
+  /// What the nearest-neighbour search reads of a voxel first: the bounding box of its points
+  /// and their number, one cache line per voxel in a compact array. The search (bound by cache
+  /// misses) skips most neighbour voxels on the box alone, without touching their points.
+  struct alignas(64) SearchBox {
+    Eigen::Vector3d low = Eigen::Vector3d::Zero();   ///< corner of the points' box [m]
+    Eigen::Vector3d high = Eigen::Vector3d::Zero();  ///< opposite corner [m]
+    std::uint32_t count = 0;  ///< points stored, in points_ at [id * stride_, + count)
   };
 
   explicit VoxelHashMap(const VoxelHashMapConfig& config);
@@ -115,16 +125,14 @@ class VoxelHashMap : public RegistrationTarget {
   /// Offset of those 27 ids in neighbour_ids_ (stable until the cache is cleared; pointers
   /// are not, the vector grows).
   std::uint32_t NeighbourOffset(const VoxelIndex& center) const;
-  /// FindMatch's search among the voxels `ids` around `center`, the voxel of `query`. Reads
-  /// only, unless normals are enabled (they are computed and cached on demand).
+  /// FindMatch's search among the voxels `ids` around `center`, the voxel of `query`, for the
+  /// nearest point closer than sqrt(bound_sq). Reads only, unless normals are enabled (they
+  /// are computed and cached on demand).
   bool MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,
-                   const std::int32_t* ids, double max_distance_m, TargetMatch* match) const;
+                   const std::int32_t* ids, double bound_sq, TargetMatch* match) const;
   void ClearNeighbourCache();
-  // Block of voxel `id` in points_: [bounds low, bounds high, point 0, point 1, ...].
-  const Eigen::Vector3d* BlockOf(std::size_t id) const { return points_.data() + id * stride_; }
-  Eigen::Vector3d* BlockOf(std::size_t id) { return points_.data() + id * stride_; }
-  const Eigen::Vector3d* PointsOf(std::size_t id) const { return BlockOf(id) + 2; }
-  Eigen::Vector3d* PointsOf(std::size_t id) { return BlockOf(id) + 2; }
+  const Eigen::Vector3d* PointsOf(std::size_t id) const { return points_.data() + id * stride_; }
+  Eigen::Vector3d* PointsOf(std::size_t id) { return points_.data() + id * stride_; }
   NormalState ComputeNormal(const Eigen::Vector3d& p, const VoxelIndex& index,
                             Eigen::Vector3d* normal) const;
 
@@ -143,12 +151,10 @@ class VoxelHashMap : public RegistrationTarget {
   // std::unordered_map here, which dominate the ICP's run time).
   VoxelIndexTable table_;
   std::vector<Voxel> voxels_;
-  // Voxel i owns points_[i * stride_, (i + 1) * stride_), stride_ = 2 + max_points_per_voxel:
-  // the bounding box of its points (low, high corner), then the points. One flat array
-  // instead of a vector per voxel saves the nearest-neighbour search (memory bound) a cache
-  // miss per visited voxel; the box lets it skip a voxel whose points are all farther than
-  // the best match so far, and is read with the first points.
-  std::size_t stride_ = 2;
+  std::vector<SearchBox> boxes_;  ///< per voxel, same ids as voxels_
+  // Voxel i owns points_[i * stride_, (i + 1) * stride_), stride_ = max_points_per_voxel. One
+  // flat array instead of a vector per voxel saves the search a cache miss per visited voxel.
+  std::size_t stride_ = 1;
   std::vector<Eigen::Vector3d> points_;
 };
 
