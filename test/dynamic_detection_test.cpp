@@ -352,18 +352,39 @@ TEST(DynamicDetectionTest, PorousCanopyIsNotDynamicWithoutTheHeightGuard) {
   EXPECT_TRUE(result.current_dynamic.empty());
 
   // Control: with the consistency checks weakened to the plain method (any passing ray, no
-  // support test, no cluster size), the same canopy does produce detections, so the scene
+  // support test, no cluster size, no ground rule), the same canopy does produce detections, so the scene
   // really exercises the porous-canopy failure.
   DynamicDetectionConfig plain = config;
   plain.min_passing_rays = 1;
   plain.max_support_points = 1000000;
   plain.min_cluster_points = 1;
   plain.min_cluster_coarse_points = 1;
+  plain.max_object_bottom_m = 0.0;
   const DynamicDetectionResult weak = RunDetector(history, current, plain);
   const int canopy_weak = CountLabel(history.labels, weak.history_dynamic, kCanopy, true) +
                           CountLabel(current.labels, weak.current_dynamic, kCanopy, true);
   std::printf("plain method: %d canopy points dynamic\n", canopy_weak);
   EXPECT_GT(canopy_weak, 10);
+}
+
+// Scan origins of a hand-made submap: along y at x = 0, every 0.5 m, at height z [m].
+void AddOriginsAlongY(double z, Submap* submap) {
+  for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.5) {
+    SubmapScanRecord record;
+    record.T_submap_sensor = Pose3(Eigen::Translation3d(0.0, y, z));
+    submap->scans.push_back(record);
+  }
+}
+
+// A hand-made street: ground at z = 0 up to x = 11.8 and a wall at x = 12 from 0.2 m up to
+// wall_top_m, every 0.2 m.
+void AddStreet(double wall_top_m, PointVector* out) {
+  for (double x = -2.0; x <= 11.8 + 1e-9; x += 0.2) {
+    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
+  }
+  for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
+    for (double z = 0.2; z <= wall_top_m + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
+  }
 }
 
 // A far parked car is crossed by the other session's rays mostly low, under its roof (rays to
@@ -381,13 +402,6 @@ TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBel
       }
     }
   };
-  auto with_origins = [](double z, Submap* submap) {
-    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.5) {
-      SubmapScanRecord record;
-      record.T_submap_sensor = Pose3(Eigen::Translation3d(0.0, y, z));
-      submap->scans.push_back(record);
-    }
-  };
   auto wall = [](PointVector* out) {  // a 1 m wall behind the roof, seen by both sessions
     for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
       for (double z = 0.2; z <= 1.0 + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
@@ -399,10 +413,10 @@ TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBel
   const std::size_t roof_begin = history.points.size();
   grid(7.0, 9.0, -1.0, 1.0, 1.4, false, &history.points);
   const std::size_t roof_points = history.points.size() - roof_begin;
-  with_origins(3.0, &history);
+  AddOriginsAlongY(3.0, &history);
   grid(-2.0, 11.8, -6.0, 6.0, 0.0, false, &current.points);  // ground, also under the roof
   wall(&current.points);
-  with_origins(1.0, &current);
+  AddOriginsAlongY(1.0, &current);
 
   auto roof_found = [&](const DynamicDetectionConfig& config) {
     StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
@@ -430,30 +444,15 @@ TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBel
 // session only low, under 1 m; above the 2 m height guard its points are no seeds but belong
 // to the object grown from below, up to guard_object_height_m.
 TEST(DynamicDetectionTest, TallObjectIsRemovedAboveTheGuardUpToTheObjectHeight) {
-  auto with_origins = [](double z, Submap* submap) {
-    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.5) {
-      SubmapScanRecord record;
-      record.T_submap_sensor = Pose3(Eigen::Translation3d(0.0, y, z));
-      submap->scans.push_back(record);
-    }
-  };
-  auto street = [](PointVector* out) {  // ground, and a 1 m wall at x = 12
-    for (double x = -2.0; x <= 11.8 + 1e-9; x += 0.2) {
-      for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
-    }
-    for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
-      for (double z = 0.2; z <= 1.0 + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
-    }
-  };
   Submap history, current;
-  street(&history.points);
+  AddStreet(1.0, &history.points);
   const std::size_t truck_begin = history.points.size();
   for (double y = -2.0; y <= 2.0 + 1e-9; y += 0.2) {
     for (double z = 0.4; z <= 3.2 + 1e-9; z += 0.2) history.points.emplace_back(8.0, y, z);
   }
-  with_origins(3.0, &history);
-  street(&current.points);
-  with_origins(1.0, &current);
+  AddOriginsAlongY(3.0, &history);
+  AddStreet(1.0, &current.points);
+  AddOriginsAlongY(1.0, &current);
 
   // Truck points found below / above the guard.
   auto found = [&](const DynamicDetectionConfig& config, int* low, int* high) {
@@ -483,6 +482,50 @@ TEST(DynamicDetectionTest, TallObjectIsRemovedAboveTheGuardUpToTheObjectHeight) 
   EXPECT_EQ(high, 0);
 }
 
+// Without the height guard, something the other session saw through that floats above the
+// ground (a porous tree crown, the upper part of a facade) must not become dynamic: movable
+// objects stand on the ground. Hand-made submaps: the history saw a 2 x 2 m patch at
+// 2.6-3.4 m with nothing below it, the current session saw the tall wall behind it through
+// that space. The same patch at car height (0.4-1.2 m) is a removed object.
+TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
+  // Patch points of the history found dynamic (anything else found fails the test).
+  auto patch_found = [&](double bottom_m, const DynamicDetectionConfig& config, int* patch) {
+    Submap history, current;
+    AddStreet(4.0, &history.points);  // a 4 m wall: the current session sees it through
+    const std::size_t patch_begin = history.points.size();
+    for (double y = -1.0; y <= 1.0 + 1e-9; y += 0.2) {
+      for (double z = bottom_m; z <= bottom_m + 0.8 + 1e-9; z += 0.2) {
+        history.points.emplace_back(8.0, y, z);
+      }
+    }
+    AddOriginsAlongY(3.0, &history);
+    AddStreet(4.0, &current.points);
+    AddOriginsAlongY(3.0, &current);
+    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
+    ASSERT_TRUE(detector.ok());
+    StatusOr<DynamicDetectionResult> result =
+        detector.value().Detect(history, current, Pose3::Identity());
+    ASSERT_TRUE(result.ok());
+    for (std::uint32_t i : result.value().history_dynamic) ASSERT_GE(i, patch_begin);
+    *patch = static_cast<int>(result.value().history_dynamic.size());
+  };
+  constexpr int kPatchPoints = 11 * 5;
+  DynamicDetectionConfig config;
+  config.height_guard_enabled = false;
+  ASSERT_GT(config.max_object_bottom_m, 0.0);
+  DynamicDetectionConfig no_ground_rule = config;
+  no_ground_rule.max_object_bottom_m = 0.0;
+  int high = 0, high_plain = 0, low = 0;
+  patch_found(2.6, config, &high);
+  patch_found(2.6, no_ground_rule, &high_plain);
+  patch_found(0.4, config, &low);
+  std::printf("patch of %d points: floating %d found (%d without the rule), at car height %d\n",
+              kPatchPoints, high, high_plain, low);
+  EXPECT_EQ(high, 0);
+  EXPECT_GE(high_plain, 0.9 * kPatchPoints);  // the scene does exercise the floating case
+  EXPECT_GE(low, 0.9 * kPatchPoints);
+}
+
 TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   DynamicDetectionConfig config;
   config.voxel_size_m = 0.0;
@@ -507,6 +550,9 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.column_clearance_m = std::nan("");
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config = DynamicDetectionConfig();
+  config.max_object_bottom_m = -0.5;
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
 
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());

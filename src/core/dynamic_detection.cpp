@@ -287,9 +287,15 @@ class PairDetection {
            },
            &cluster);
       int coarse = 0;
-      for (std::uint32_t i : cluster) coarse += state[i] == 2;
+      float bottom_m = std::numeric_limits<float>::max();
+      for (std::uint32_t i : cluster) {
+        coarse += state[i] == 2;
+        bottom_m = std::min(bottom_m, side.height_m[i]);
+      }
+      const bool grounded =
+          config_.max_object_bottom_m == 0.0 || bottom_m <= config_.max_object_bottom_m;
       if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
-          coarse >= config_.min_cluster_coarse_points) {
+          coarse >= config_.min_cluster_coarse_points && grounded) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
       }
     }
@@ -647,6 +653,9 @@ Status DynamicDetectionConfig::Validate() const {
   }
   if (!std::isfinite(ground_tolerance_m) || ground_tolerance_m < 0.0) {
     return Status::Error("dynamic_detection.ground_tolerance_m must be >= 0");
+  }
+  if (!std::isfinite(max_object_bottom_m) || max_object_bottom_m < 0.0) {
+    return Status::Error("dynamic_detection.max_object_bottom_m must be >= 0 (0: off)");
   }
   if (voxel_size_m < 0.01) {
     return Status::Error("dynamic_detection.voxel_size_m must be >= 0.01 (memory), got " +

@@ -120,6 +120,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "height_guard_enabled", &m.dynamics.height_guard_enabled},
       {"low_dynamics", "height_guard_m", &m.dynamics.height_guard_m},
       {"low_dynamics", "guard_object_height_m", &m.dynamics.guard_object_height_m},
+      {"low_dynamics", "max_object_bottom_m", &m.dynamics.max_object_bottom_m},
       {"low_dynamics", "changed_objects_enabled", &m.dynamics.changed_objects_enabled},
       {"low_dynamics", "changed_surface_distance_m", &m.dynamics.changed_surface_distance_m},
       {"low_dynamics", "changed_min_fraction", &m.dynamics.changed_min_fraction},

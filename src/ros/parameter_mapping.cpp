@@ -102,6 +102,7 @@ namespace ros_params {
   F(low_dynamics_voxel_size_m, g.dynamics.voxel_size_m)                                       \
   F(low_dynamics_height_guard_enabled, g.dynamics.height_guard_enabled)                       \
   F(low_dynamics_height_guard_m, g.dynamics.height_guard_m)                                   \
+  F(low_dynamics_max_object_bottom_m, g.dynamics.max_object_bottom_m)                         \
   F(low_dynamics_changed_objects_enabled, g.dynamics.changed_objects_enabled)                 \
   F(low_dynamics_changed_surface_distance_m, g.dynamics.changed_surface_distance_m)           \
   F(low_dynamics_changed_min_fraction, g.dynamics.changed_min_fraction)                       \

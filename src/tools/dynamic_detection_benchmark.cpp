@@ -65,8 +65,9 @@ const char kUsage[] =
     "  --json FILE        also write the figures as JSON\n"
     "  --set KEY=VALUE    override a detector parameter (seed_distance_m, support_radius_m,\n"
     "                     min_passing_rays, max_support_points, min_cluster_points,\n"
-    "                     min_cluster_coarse_points, max_range_m, end_margin_m, rays_per_point,\n"
-    "                     origin_spacing_m, dynamic_grow_radius_m, mending_distance_m,\n"
+    "                     min_cluster_coarse_points, max_object_bottom_m, max_range_m,\n"
+    "                     end_margin_m, rays_per_point, origin_spacing_m,\n"
+    "                     dynamic_grow_radius_m, mending_distance_m,\n"
     "                     free_column_depth_m, column_clearance_m, guard_object_height_m,\n"
     "                     ground_tolerance_m, ground_cell_m, own_ground_max_gap_m,\n"
     "                     changed_objects_enabled (0/1), changed_compare_range_m,\n"
@@ -409,6 +410,7 @@ int main(int argc, char** argv) {
       else if (key == "max_support_points") config.max_support_points = static_cast<int>(v);
       else if (key == "min_cluster_points") config.min_cluster_points = static_cast<int>(v);
       else if (key == "min_cluster_coarse_points") config.min_cluster_coarse_points = static_cast<int>(v);
+      else if (key == "max_object_bottom_m") config.max_object_bottom_m = v;
       else if (key == "max_range_m") config.max_range_m = v;
       else if (key == "end_margin_m") config.end_margin_m = v;
       else if (key == "rays_per_point") config.rays_per_point = static_cast<int>(v);

@@ -40,8 +40,10 @@
 //    other session pass through its voxel AND the other session has no point above the ground
 //    within `support_radius_m` of it (a removed car leaves empty air; a canopy does not). A
 //    detection must be a cluster of at least `min_cluster_points` points with at least
-//    `min_cluster_coarse_points` coarse points. So canopies stay static with the height guard
-//    off; the guard is kept as an extra safety for tall structures.
+//    `min_cluster_coarse_points` coarse points, and it must stand on the ground (its lowest
+//    point at most `max_object_bottom_m` above it): a crown that floats above its trunk is no
+//    movable object. So canopies stay static with the height guard off; the guard is kept as
+//    the paper's default.
 //  - Free columns: a parked car seen from 15-25 m by the other session is crossed mostly low,
 //    by rays to the ground behind it, which pass through the car's place under its roof, not
 //    through the voxels of its surface points. So the passing rays that count for a point are
@@ -110,6 +112,13 @@ struct DynamicDetectionConfig {
   double dynamic_grow_radius_m = 0.45;
   int min_cluster_points = 10;
   int min_cluster_coarse_points = 3;
+  /// A detection must stand on the ground: its lowest point at most this high above the local
+  /// ground [m]. Movable things rest on the ground (a car seen over another one shows only its
+  /// top, from about 1.2 m); a porous tree crown or the upper part of a facade that the other
+  /// session saw through floats. campus s00-s01 pair, height guard off
+  /// (dynamic_detection_benchmark): canopy SA 95.66 % without the rule, 99.53 % at 1.5 m,
+  /// 99.90 % at 1.0 m; low-dynamic DA 53.9 / 53.3 / 50.2 %. 0: off.
+  double max_object_bottom_m = 1.5;
   /// Local ground: cell edge [m]; points this close above the ground are ground [m]. Each
   /// submap's points are measured against its own ground, unless that is more than
   /// own_ground_max_gap_m above the ground of both submaps together [m]. Measured with
