@@ -107,8 +107,9 @@ void KdTreeTarget::FindMatches(const PointVector& queries, double max_distance_m
   matches->resize(n);
   const double max_sq = max_distance_m * max_distance_m;
   for (std::size_t i = 0; i < n; ++i) {
+    const bool previous = hints && (*found)[i] != 0;
     const double bound_sq =
-        WarmStartBoundSq(hints && (*found)[i] != 0, (*matches)[i], queries[i], max_sq);
+        WarmStartBoundSq(previous ? &(*matches)[i] : nullptr, queries[i], max_sq);
     (*found)[i] = MatchWithin(queries[i], bound_sq, &(*matches)[i]) ? 1 : 0;
   }
 }

@@ -240,7 +240,8 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
   const bool hints = warm_start && found->size() == n && matches->size() == n;
   // Squared bound of query i's search (the neighbour voxels are visited in a fixed order).
   auto bound_sq = [&](std::size_t i) {
-    return WarmStartBoundSq(hints && (*found)[i] != 0, (*matches)[i], queries[i], max_sq);
+    const bool previous = hints && (*found)[i] != 0;
+    return WarmStartBoundSq(previous ? &(*matches)[i] : nullptr, queries[i], max_sq);
   };
   if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries) {
     if (!hints) found->assign(n, 0);

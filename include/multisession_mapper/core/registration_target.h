@@ -31,10 +31,11 @@ struct TargetMatch {
 /// point is at most that far; at most `max_sq`. A search that accepts only points closer than
 /// this visits the candidates that can win in the same order as an unbounded one, so it picks
 /// the same point. The margin keeps the previous match itself inside despite rounding.
-inline double WarmStartBoundSq(bool found_before, const TargetMatch& previous,
-                               const Eigen::Vector3d& query, double max_sq) {
-  if (!found_before) return max_sq;
-  const double d_sq = (previous.point - query).squaredNorm();
+/// `previous` null: the query had no match, the bound is `max_sq`.
+inline double WarmStartBoundSq(const TargetMatch* previous, const Eigen::Vector3d& query,
+                               double max_sq) {
+  if (previous == nullptr) return max_sq;
+  const double d_sq = (previous->point - query).squaredNorm();
   return std::min(max_sq, d_sq * (1.0 + 1e-9) + 1e-18);
 }
 
