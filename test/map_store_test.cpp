@@ -138,6 +138,29 @@ TEST(MapStore, UnchangedSubmapsAreHardLinkedAndExtraFilesCarriedOver) {
   EXPECT_EQ(reloaded.value().submaps[1].points.size(), 501u);
 }
 
+TEST(MapStore, RetiredFilesAreNotCarriedOver) {
+  const std::string dir = TempDir("retired");
+  MapStore store;
+  MapContents map = MakeMap(2, 3);
+  map.files["place_recognition/s01.csv"] = "query\n";
+  map.clouds["dynamics/s01_removed.pcd"] = {Eigen::Vector3d(1, 2, 3)};
+  ASSERT_TRUE(store.Save(map, dir).ok());
+  ASSERT_TRUE(fs::exists(fs::path(dir) / "place_recognition/s01.csv"));
+  ASSERT_TRUE(fs::exists(fs::path(dir) / "dynamics/s01_removed.pcd"));
+  StatusOr<MapContents> loaded = store.Load(dir);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  MapContents next = loaded.value();
+  next.files.clear();  // everything else is carried over from the old map
+  next.retired_files = {"place_recognition/s01.csv", "dynamics/s01_removed.pcd"};
+  ASSERT_TRUE(store.Save(next, dir).ok());
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "place_recognition/s01.csv"));
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "dynamics/s01_removed.pcd"));
+  EXPECT_TRUE(fs::exists(fs::path(dir) / "loops/s00.csv"));
+  StatusOr<MapContents> reloaded = store.Load(dir);  // the manifest no longer lists them
+  ASSERT_TRUE(reloaded.ok()) << reloaded.status().message();
+  ExpectSameMap(loaded.value(), reloaded.value());
+}
+
 // A crash after any number of written files leaves the old map loadable and unchanged.
 TEST(MapStore, CrashAtEveryStepLeavesOldOrNewMap) {
   const std::string dir = TempDir("crash");

@@ -143,7 +143,9 @@ class SessionMergerTest : public ::testing::Test {
 };
 
 TEST_F(SessionMergerTest, MergesAReversedSessionRemovesTheCarAndDoesNotGrow) {
-  StatusOr<SessionMerger> merger = SessionMerger::Create(SessionMergerConfig());
+  SessionMergerConfig config;
+  config.fusion.record_sessions = 1;  // point records of the last session only
+  StatusOr<SessionMerger> merger = SessionMerger::Create(config);
   ASSERT_TRUE(merger.ok()) << merger.status().message();
   MapContents map;
 
@@ -209,6 +211,7 @@ TEST_F(SessionMergerTest, MergesAReversedSessionRemovesTheCarAndDoesNotGrow) {
   // views, but the new submaps are fused into the history ones, not added beside them.
   EXPECT_GT(report.submaps_fused, 0u);
   EXPECT_TRUE(map.files.count("changes/s01.yaml"));
+  EXPECT_TRUE(map.clouds.count("dynamics/s01_removed.pcd"));
   ASSERT_TRUE(map.files.count("loops/s01.csv"));
   {
     // Accepted voted loops came from global registration: their row carries the structure
@@ -250,6 +253,12 @@ TEST_F(SessionMergerTest, MergesAReversedSessionRemovesTheCarAndDoesNotGrow) {
   EXPECT_EQ(r3.value().submaps_added, 0u) << "every submap of a repeated drive is fused";
   EXPECT_GT(map.submaps.size(), submaps_after_two);  // kept for the record, as fused
   EXPECT_LE(PointsOnCar(map), car_after + 5);
+  // Retention: s02's point records replace s01's; change logs and loops of both stay.
+  EXPECT_TRUE(map.clouds.count("dynamics/s02_removed.pcd"));
+  EXPECT_FALSE(map.clouds.count("dynamics/s01_removed.pcd"));
+  EXPECT_TRUE(map.retired_files.count("dynamics/s01_removed.pcd"));
+  EXPECT_TRUE(map.files.count("changes/s01.yaml"));
+  EXPECT_TRUE(map.files.count("loops/s01.csv"));
 }
 
 TEST_F(SessionMergerTest, ASessionElsewhereIsRefusedAndTheMapIsUnchanged) {
@@ -297,6 +306,9 @@ TEST(SessionMergerConfig, InvalidValuesAreRefused) {
   EXPECT_FALSE(config.Validate().ok());
   config = SessionMergerConfig();
   config.fusion.max_dynamic_fraction = 0.0;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SessionMergerConfig();
+  config.fusion.record_sessions = -1;
   EXPECT_FALSE(config.Validate().ok());
 }
 

@@ -210,7 +210,8 @@ def run(options):
         s.update(table)
         rows = map_dir.place_recognition(name) if index > 0 else None
         if index > 0 and rows is None:
-            warnings.append('%s: no place_recognition/%s.csv' % (name, name))
+            warnings.append('%s: no place_recognition/%s.csv (kept for the last '
+                            'map_update.record_sessions sessions only)' % (name, name))
         history = {h: truth_world[h] for h in map_dir.session_names[:index]}
         pr = place_recognition.evaluate_session(rows, truth_world[name], history,
                                                 options.pr_radius_m, options.pr_k,

@@ -420,6 +420,7 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
         for (auto it = files.begin(); files && it != files.end(); ++it) {
           const std::string rel = it->first.as<std::string>();
           if (!SafeRelativePath(rel) || fs::exists(fresh / rel, ec)) continue;
+          if (contents.retired_files.count(rel)) continue;  // past its retention: dropped
           if (rel == kGraph || rel.rfind("submaps/", 0) == 0 || rel.rfind("trajectories/", 0) == 0) {
             continue;  // managed above: absent now means removed
           }

@@ -50,5 +50,22 @@ Status AddFirstSession(const SessionResult& session, const SessionRecord& record
   return Status::Ok();
 }
 
+std::vector<std::string> SessionRecordFiles(const std::string& session) {
+  return {"dynamics/" + session + "_removed.pcd", "dynamics/" + session + "_mended.pcd",
+          "place_recognition/" + session + ".csv"};
+}
+
+void RetireSessionRecords(int keep, MapContents* map) {
+  if (keep <= 0 || map->sessions.size() <= static_cast<std::size_t>(keep)) return;
+  const std::size_t retired = map->sessions.size() - static_cast<std::size_t>(keep);
+  for (std::size_t i = 0; i < retired; ++i) {
+    for (const std::string& rel : SessionRecordFiles(map->sessions[i].name)) {
+      map->files.erase(rel);
+      map->clouds.erase(rel);
+      map->retired_files.insert(rel);
+    }
+  }
+}
+
 }  // namespace core
 }  // namespace multisession_mapper

@@ -129,6 +129,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"map_update", "fuse_voxel_m", &m.fusion.voxel_m},
       {"map_update", "max_dynamic_fraction", &m.fusion.max_dynamic_fraction},
       {"map_update", "propagate_radius_m", &m.fusion.propagate_radius_m},
+      {"map_update", "record_sessions", &m.fusion.record_sessions},
       {"map_update", "num_threads", &m.num_threads},
   };
 }

@@ -114,6 +114,7 @@ Status MapFusionConfig::Validate() const {
   if (!Finite(propagate_radius_m) || propagate_radius_m < 0.0) {
     return Status::Error("fusion.propagate_radius_m must be >= 0");
   }
+  if (record_sessions < 0) return Status::Error("fusion.record_sessions must be >= 0 (0: all)");
   return Status::Ok();
 }
 
@@ -675,6 +676,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   }
   map->clouds["dynamics/" + record.name + "_removed.pcd"] = std::move(all_removed);
   map->clouds["dynamics/" + record.name + "_mended.pcd"] = std::move(all_mended);
+  RetireSessionRecords(config_.fusion.record_sessions, map);
   report.update_s = SecondsSince(update_start);
   report.total_s = SecondsSince(start);
   report.points_fused = fusion_points;

@@ -49,6 +49,9 @@ struct MapContents {
   /// Submaps ("session/id") whose points are unchanged since they were loaded: their PCD is
   /// hard-linked from the old map instead of being written again.
   std::set<std::string> clean_submaps;
+  /// Files of the current map ("place_recognition/s01.csv") that the next save does not carry
+  /// over: records past their retention (RetireSessionRecords).
+  std::set<std::string> retired_files;
 };
 
 struct MapStoreConfig {

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/session_mapper.h"
@@ -30,6 +31,16 @@ struct SessionFiles {
 /// graph (submap 0 fixed). Fails when the map already has sessions.
 Status AddFirstSession(const SessionResult& session, const SessionRecord& record,
                        const SessionFiles& files, MapContents* map);
+
+/// Relative paths of a session's records that a retention policy may drop: its point records
+/// (dynamics/<session>_removed.pcd, _mended.pcd) and its place-recognition log.
+std::vector<std::string> SessionRecordFiles(const std::string& session);
+
+/// Retention of the records (MapFusionConfig::record_sessions): the records of every session
+/// but the last `keep` ones in `map->sessions` leave `map->files` / `map->clouds` and are
+/// listed in `map->retired_files`, so that the next save does not carry them over. Change
+/// logs, loops, trajectories and timing records stay. keep <= 0: nothing is retired.
+void RetireSessionRecords(int keep, MapContents* map);
 
 }  // namespace core
 }  // namespace multisession_mapper

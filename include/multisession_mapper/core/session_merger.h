@@ -61,6 +61,13 @@ struct MapFusionConfig {
   /// not pair. After the detections, every point of an active history submap or of a new
   /// submap within this distance of a dynamic point (in the map frame) is dynamic as well.
   double propagate_radius_m = 0.2;
+  /// Records kept per session: the point records of a merge (dynamics/<session>_removed.pcd
+  /// and _mended.pcd, about 1 MB per `small` session) and its place-recognition log
+  /// (place_recognition/<session>.csv) are kept for the last this many merged sessions and
+  /// dropped from the map directory after that, so that a map merged every day keeps a
+  /// bounded size; every session keeps its change log (changes/<session>.yaml, with the
+  /// counts), loops and trajectories (0: keep every record).
+  int record_sessions = 3;
 
   Status Validate() const;
 };
