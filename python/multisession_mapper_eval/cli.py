@@ -117,8 +117,10 @@ def _t_map_world(map_dir, truth_trajectories):
         origin_submap = min(submaps, key=lambda s: (s.id, s.first_stamp))
         t_world_sensor = trajectory.lookup(origin_submap.first_stamp, 1e-3)
         if t_world_sensor is not None:
-            # The origin of submap 0 is the identity by construction; divide it out anyway.
-            return tr.inverse(t_world_sensor @ tr.inverse(origin_submap.origin))
+            # The map frame is the first scan's: its pose in the map is the identity by
+            # construction (submap 0's origin times the scan's pose in it); divide it out anyway.
+            t_map_sensor = origin_submap.origin @ origin_submap.first_scan_pose
+            return tr.inverse(t_world_sensor @ tr.inverse(t_map_sensor))
     return tr.inverse(trajectory.poses[0])
 
 

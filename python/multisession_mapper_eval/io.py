@@ -85,6 +85,10 @@ class Submap(object):
         self.first_stamp = float(entry['first_stamp'])
         self.last_stamp = float(entry.get('last_stamp', self.first_stamp))
         self.scan_stamps = np.array(entry.get('scan_stamps') or [], dtype=np.float64)
+        # Pose of the first scan in the submap frame: the identity, except for the map's first
+        # scan after the frame anchor re-expressed the session in that scan's frame.
+        poses = entry.get('scan_poses') or []
+        self.first_scan_pose = tr.pose_from_list(poses[0]) if poses else np.eye(4)
         self.points = int(entry.get('points', 0) or 0)
         self.file = os.path.join(map_dir, entry.get('file', 'submaps/%s/%d.pcd'
                                                     % (self.session, self.id)))

@@ -12,7 +12,8 @@ Per new session (every session after the first, in merge order), each of its sub
   - new (really new place): fewer than `overlap_min_fraction` of its scans have a scan of an
     earlier session (ground-truth position) within `overlap_radius_m`;
   - missed: otherwise (overlap existed but no match was accepted).
-The origin of a submap is the sensor pose at its `first_stamp`, looked up in the truth TUM.
+The origin of a submap is the sensor pose at its `first_stamp`, looked up in the truth TUM (times
+the inverse of that scan's pose in the submap: the identity but for a re-anchored first submap).
 Intra-session loops (kind `intra`): accepted, correct, wrong by the same pose test.
 A submap that cannot be judged (missing from the manifest, whose `fused` entries must stay, or
 stamps missing from the truth) is `unknown` and counted in `submaps_unknown`, never guessed.
@@ -50,8 +51,11 @@ class TruthLookup(object):
         return None if trajectory is None else trajectory.lookup(stamp, self.tolerance_s)
 
     def origin(self, submap):
-        """Truth pose (world frame) of the submap's origin: the pose at its first stamp."""
-        return self.pose(submap.session, submap.first_stamp)
+        """Truth pose (world frame) of the submap's origin: the pose at its first stamp, times
+        the inverse of that scan's pose in the submap (the identity but for a re-anchored first
+        submap)."""
+        pose = self.pose(submap.session, submap.first_stamp)
+        return None if pose is None else pose @ tr.inverse(submap.first_scan_pose)
 
     def scan_positions(self, submap):
         trajectory = self.trajectories.get(submap.session)

@@ -29,7 +29,8 @@ Status IntraLoopConfig::Validate() const {
 
 Status SessionMapperConfig::Validate() const {
   for (const Status& s : {odometry.Validate(), submaps.Validate(), intra_loops.Validate(),
-                          pose_graph.Validate(), vertical_structure.Validate()}) {
+                          pose_graph.Validate(), vertical_structure.Validate(),
+                          frame_anchor.Validate()}) {
     if (!s.ok()) return s;
   }
   if (!(odometry_sigma_translation_m > 0.0) || !(odometry_sigma_translation_per_m >= 0.0) ||
@@ -58,6 +59,10 @@ struct SessionMapper::State {
   // Split path (AddRegisteredScan): the odometry ran outside; its poses are kept here.
   bool split = false;
   Trajectory split_odometry;
+  // The first mapped scan (sensor frame) and its submap, for the frame anchor.
+  PointVector first_scan;  // the first frame_anchor.scans scans, in the first one's frame
+  Pose3 first_scan_odometry = Pose3::Identity();
+  std::uint32_t first_submap = 0;
 
   State(const SessionMapperConfig& c, const std::string& s, Odometry o, SubmapBuilder b,
         SubmapRegistration r)
@@ -228,10 +233,21 @@ struct SessionMapper::State {
                            "); its pose is only predicted, so it is not mapped (a jump of the "
                            "sensor or a long gap?)");
     }
+    if (config.frame_anchor.enabled &&
+        processed < static_cast<std::size_t>(config.frame_anchor.scans)) {
+      // The first scans, in the first scan's frame by their odometry (drift is negligible
+      // over a second or two): one denser cloud for the anchor's registration.
+      if (processed == 0) first_scan_odometry = result.pose;
+      const Pose3 T_first_scan = first_scan_odometry.inverse() * result.pose;
+      for (const LidarPoint& p : result.deskewed_scan.points) {
+        first_scan.push_back(T_first_scan * p.position_m.cast<double>());
+      }
+    }
     ++processed;
     timings.odometry_ms.push_back(result.timing.total_ms);
     const auto start = std::chrono::steady_clock::now();
     builder.AddScan(result.deskewed_scan, result.pose);
+    if (processed == 1) first_submap = builder.current_submap_id();
     timings.submap_building_ms.push_back(SecondsSince(start) * 1e3);
     last = std::move(result);
     has_last = true;
@@ -349,10 +365,15 @@ StatusOr<SessionResult> SessionMapper::Finish() {
   st.Optimise();
   SessionResult result;
   result.session = st.session;
-  for (Submap& submap : st.submaps) {
-    submap.T_map_submap = st.graph.NodePose(submap.id);
-    AppendScanPoses(submap, &result.trajectory);
+  for (Submap& submap : st.submaps) submap.T_map_submap = st.graph.NodePose(submap.id);
+  if (st.config.frame_anchor.enabled && !st.first_scan.empty()) {
+    result.anchor = EstimateFirstScanPose(st.first_scan, st.submaps, st.first_submap,
+                                          st.config.frame_anchor);
+    if (result.anchor.applied) {
+      Reanchor(result.anchor.T_session_scan, st.first_submap, &st.graph, &st.submaps);
+    }
   }
+  for (Submap& submap : st.submaps) AppendScanPoses(submap, &result.trajectory);
   SortTrajectory(&result.trajectory);
   result.submaps = std::move(st.submaps);
   result.graph = st.graph;

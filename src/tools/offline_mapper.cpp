@@ -7,6 +7,7 @@
 // be merged (e.g. no consistent overlap with the map); on any error the map is unchanged.
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
@@ -262,6 +263,16 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     return 1;
   }
   PrintMergeReport(merged.value());
+  const core::FrameAnchorResult& anchor = result.value().anchor;
+  if (anchor.applied) {
+    std::fprintf(stderr,
+                 "%s: frame re-anchored on its first scan: moved %.3f m / %.3f deg (overlap %.2f "
+                 "with %zu submaps)\n",
+                 name.c_str(), anchor.correction_m, anchor.correction_rad * 180.0 / M_PI,
+                 anchor.overlap_ratio, anchor.reference_submaps);
+  } else if (!anchor.reason.empty()) {
+    std::fprintf(stderr, "%s: frame not re-anchored: %s\n", name.c_str(), anchor.reason.c_str());
+  }
   int accepted = 0;
   for (const core::LoopRecord& loop : result.value().loops) {
     accepted += loop.status == core::LoopStatus::kAccepted;

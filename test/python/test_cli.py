@@ -155,6 +155,30 @@ def test_truth_in_map_frame_is_written(report):
     assert abs(t.positions[5][0] - 5.0) < 1e-6 and abs(t.positions[5][1] - 2.0) < 1e-6
 
 
+def _copy_of_map(synthetic_dirs, tmp_path, name):
+    """A copy of the synthetic map: (its directory, its manifest, the submap entries by key)."""
+    import shutil
+    import yaml
+    copy = str(tmp_path / name)
+    shutil.copytree(synthetic_dirs[0], copy)
+    with open(os.path.join(copy, 'manifest.yaml')) as f:
+        manifest = yaml.safe_load(f)
+    return copy, manifest, {(s['session'], s['id']): s for s in manifest['submaps']}
+
+
+def _write_manifest(map_dir, manifest):
+    import yaml
+    with open(os.path.join(map_dir, 'manifest.yaml'), 'w') as f:
+        yaml.safe_dump(manifest, f, sort_keys=False)
+
+
+def _report_of(map_dir, truth_dir, out, *extra):
+    assert cli.main(['--map', map_dir, '--truth', truth_dir, '--out', out, '--quiet',
+                     '--no-plots'] + list(extra)) == 0
+    with open(os.path.join(out, 'report.json')) as f:
+        return json.load(f)
+
+
 def test_submap_origins_truth_measures_the_content_without_the_alignment(synthetic_dirs,
                                                                          tmp_path):
     # The synthetic submaps sit at their true origins, and all points are in s00/0. A copy moves
@@ -162,17 +186,10 @@ def test_submap_origins_truth_measures_the_content_without_the_alignment(synthet
     # 3 m. (s00/0 cannot be moved: its origin anchors the map frame.) Placed at the estimated
     # origins the copy loses static points; placed at the true origins (the diagnosis) it scores
     # what the unmodified map scores.
-    import shutil
     import numpy as np
-    import yaml
     from multisession_mapper_eval import pcd
     from multisession_mapper_eval import trajectory as tr
-    shifted = str(tmp_path / 'shifted')
-    shutil.copytree(synthetic_dirs[0], shifted)
-    path = os.path.join(shifted, 'manifest.yaml')
-    with open(path) as f:
-        manifest = yaml.safe_load(f)
-    entries = {(s['session'], s['id']): s for s in manifest['submaps']}
+    shifted, manifest, entries = _copy_of_map(synthetic_dirs, tmp_path, 'shifted')
     o0 = tr.pose_from_list(entries[('s00', 0)]['origin'])
     o1 = tr.pose_from_list(entries[('s00', 1)]['origin'])
     points = pcd.xyz(pcd.read_pcd(os.path.join(shifted, 'submaps/s00/0.pcd')))
@@ -183,15 +200,12 @@ def test_submap_origins_truth_measures_the_content_without_the_alignment(synthet
     pcd.write_pcd(os.path.join(shifted, 'submaps/s00/0.pcd'),
                   {'x': far, 'y': far, 'z': far - 50.0})
     entries[('s00', 1)]['origin'][0] += 3.0
-    with open(path, 'w') as f:
-        yaml.safe_dump(manifest, f, sort_keys=False)
+    _write_manifest(shifted, manifest)
 
     def dynamics_of(map_dir, origins):
         out = str(tmp_path / ('out_%s_%s' % (os.path.basename(map_dir), origins)))
-        assert cli.main(['--map', map_dir, '--truth', synthetic_dirs[1], '--out', out,
-                         '--quiet', '--no-plots', '--submap-origins', origins]) == 0
-        with open(os.path.join(out, 'report.json')) as f:
-            return json.load(f)['dynamics']
+        return _report_of(map_dir, synthetic_dirs[1], out, '--submap-origins',
+                          origins)['dynamics']
 
     original = dynamics_of(synthetic_dirs[0], 'estimated')
     assert dynamics_of(synthetic_dirs[0], 'truth')['static'] == original['static']
@@ -200,3 +214,55 @@ def test_submap_origins_truth_measures_the_content_without_the_alignment(synthet
     assert truth_origins['submap_origins'] == 'truth'
     assert truth_origins['static'] == original['static']
     assert truth_origins['low'] == original['low'] and truth_origins['high'] == original['high']
+
+
+def test_a_reanchored_first_submap_keeps_the_map_frame_of_the_first_scan(synthetic_dirs,
+                                                                         tmp_path):
+    # The frame anchor (frame_anchor.h) moves submap s00/0's origin off the identity and records
+    # the first scan's pose in that submap instead, so that the first scan stays the identity.
+    # The same map content expressed that way must score exactly what the original scores: the
+    # map frame is the first scan's, not submap 0's origin.
+    import numpy as np
+    from multisession_mapper_eval import pcd
+    from multisession_mapper_eval import trajectory as tr
+    anchored, manifest, entries = _copy_of_map(synthetic_dirs, tmp_path, 'anchored')
+    entry = entries[('s00', 0)]
+    origin = tr.pose_from_list(entry['origin'])
+    yaw, offset = 0.05, np.array([0.4, -0.3, 0.1])
+    b = np.eye(4)
+    b[:3, :3] = [[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0], [0, 0, 1]]
+    b[:3, 3] = offset
+    new_origin = origin @ b
+    entry['origin'] = tr.pose_to_list(new_origin)
+    entry['scan_poses'] = [tr.pose_to_list(tr.inverse(b))]
+    cloud = os.path.join(anchored, 'submaps/s00/0.pcd')
+    points = tr.transform_points(tr.inverse(b), pcd.xyz(pcd.read_pcd(cloud))).astype(np.float32)
+    pcd.write_pcd(cloud, {'x': points[:, 0], 'y': points[:, 1], 'z': points[:, 2]})
+    _write_manifest(anchored, manifest)
+    # Loops into s00/0 hold poses relative to its frame, which moved by b.
+    for name in ('s00', 's01'):
+        csv_path = os.path.join(anchored, 'loops', name + '.csv')
+        with open(csv_path) as f:
+            lines = f.read().splitlines()
+        head = lines[0].split(',')
+        cols = [head.index(k) for k in ('tx', 'ty', 'tz', 'qx', 'qy', 'qz', 'qw')]
+        for i in range(1, len(lines)):
+            row = lines[i].split(',')
+            into_first = (row[head.index('history_session')] == 's00'
+                          and row[head.index('history_submap')] == '0')
+            if into_first and row[cols[0]]:
+                pose = tr.inverse(b) @ tr.pose_from_list([float(row[c]) for c in cols])
+                for c, v in zip(cols, tr.pose_to_list(pose)):
+                    row[c] = repr(float(v))
+                lines[i] = ','.join(row)
+        with open(csv_path, 'w') as f:
+            f.write('\n'.join(lines) + '\n')
+
+    original = _report_of(synthetic_dirs[0], synthetic_dirs[1], str(tmp_path / 'out_original'))
+    moved = _report_of(anchored, synthetic_dirs[1], str(tmp_path / 'out_anchored'))
+    assert moved['dynamics']['static']['sa'] == pytest.approx(original['dynamics']['static']['sa'])
+    assert moved['dynamics']['low'] == pytest.approx(original['dynamics']['low'])
+    for a, b2 in zip(original['sessions'], moved['sessions']):
+        assert b2['ate_rmse_m'] == pytest.approx(a['ate_rmse_m'], abs=1e-9)
+        assert b2['submaps_correct'] == a['submaps_correct']
+        assert b2['submaps_wrong'] == a['submaps_wrong']

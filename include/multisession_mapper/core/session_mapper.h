@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "multisession_mapper/core/frame_anchor.h"
 #include "multisession_mapper/core/global_registration.h"
 #include "multisession_mapper/core/loop_record.h"
 #include "multisession_mapper/core/odometry.h"
@@ -50,6 +51,9 @@ struct SessionMapperConfig {
   PoseGraphConfig pose_graph;
   /// Vertical prior of every finished submap from its walls (vertical_structure.h).
   VerticalStructureConfig vertical_structure;
+  /// After the last optimisation, the session frame is re-anchored on its first scan
+  /// (frame_anchor.h).
+  FrameAnchorConfig frame_anchor;
   /// Odometry edge noise between consecutive submaps: sigma_t = base + per_m * distance [m],
   /// sigma_r [rad].
   double odometry_sigma_translation_m = 0.05;
@@ -80,6 +84,7 @@ struct SessionResult {
   Trajectory trajectory;    ///< optimised sensor pose of every scan, session frame
   Trajectory odometry;      ///< raw odometry of every scan
   LoopRecords loops;        ///< intra-session candidates and their fate
+  FrameAnchorResult anchor;  ///< the first scan's registration that re-anchored the frame
   SessionTimings timings;
   std::size_t scans_processed = 0;
   std::size_t scans_skipped = 0;
