@@ -72,7 +72,7 @@ TEST(FrameAnchor, RecoversTheFirstScanPoseFromTheOtherSubmaps) {
     if ((p - truth.translation()).norm() <= 35.0) scan.push_back(T_scan_session * p);
   }
   const FrameAnchorResult r = EstimateFirstScanPose(scan, submaps, 0, FrameAnchorConfig());
-  ASSERT_TRUE(r.applied) << r.reason;
+  ASSERT_TRUE(r.accepted) << r.reason;
   EXPECT_EQ(r.reference_submaps, 2u) << "submap 0 and the far submap 3 are left out";
   const Pose3 error = se3::Between(truth, r.T_session_scan);
   EXPECT_LT(se3::TranslationNorm(error), 0.01);
@@ -83,20 +83,20 @@ TEST(FrameAnchor, RecoversTheFirstScanPoseFromTheOtherSubmaps) {
   FrameAnchorConfig tight;
   tight.max_correction_rad = 0.001;
   const FrameAnchorResult refused = EstimateFirstScanPose(scan, submaps, 0, tight);
-  EXPECT_FALSE(refused.applied);
+  EXPECT_FALSE(refused.accepted);
   EXPECT_NE(refused.reason.find("beyond the bounds"), std::string::npos) << refused.reason;
 
   // A correction within the registration's error keeps the graph's frame.
   FrameAnchorConfig coarse;
   coarse.min_correction_rad = 0.019;
   const FrameAnchorResult small_one = EstimateFirstScanPose(scan, submaps, 0, coarse);
-  EXPECT_FALSE(small_one.applied);
+  EXPECT_FALSE(small_one.accepted);
   EXPECT_NE(small_one.reason.find("min_correction_rad"), std::string::npos) << small_one.reason;
 
   // Without another submap near the first scan there is nothing to anchor on.
   const Submaps alone = {first, submaps[3]};
   const FrameAnchorResult none = EstimateFirstScanPose(scan, alone, 0, FrameAnchorConfig());
-  EXPECT_FALSE(none.applied);
+  EXPECT_FALSE(none.accepted);
   EXPECT_NE(none.reason.find("no other submap"), std::string::npos) << none.reason;
 }
 

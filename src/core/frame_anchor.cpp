@@ -41,6 +41,7 @@ FrameAnchorResult EstimateFirstScanPose(
     const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submaps,
     std::uint32_t first_submap, const FrameAnchorConfig& config) {
   FrameAnchorResult result;
+  result.first_submap = first_submap;
   const Submap* home = nullptr;
   for (const Submap& s : submaps) {
     if (s.id == first_submap) home = &s;
@@ -91,7 +92,7 @@ FrameAnchorResult EstimateFirstScanPose(
     result.reason = "correction " + std::to_string(r.correction_m) + " m / " +
                     std::to_string(r.correction_rad) + " rad beyond the bounds";
   } else {
-    result.applied = true;
+    result.accepted = true;
   }
   return result;
 }

@@ -367,11 +367,9 @@ StatusOr<SessionResult> SessionMapper::Finish() {
   result.session = st.session;
   for (Submap& submap : st.submaps) submap.T_map_submap = st.graph.NodePose(submap.id);
   if (st.config.frame_anchor.enabled && !st.first_scan.empty()) {
+    // Applied by SessionMerger to the first session of a map only.
     result.anchor = EstimateFirstScanPose(st.first_scan, st.submaps, st.first_submap,
                                           st.config.frame_anchor);
-    if (result.anchor.applied) {
-      Reanchor(result.anchor.T_session_scan, st.first_submap, &st.graph, &st.submaps);
-    }
   }
   for (Submap& submap : st.submaps) AppendScanPoses(submap, &result.trajectory);
   SortTrajectory(&result.trajectory);

@@ -160,8 +160,21 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     if (!s.ok()) return s;
     StatusOr<std::string> bytes = DatabaseBytes(database.value());
     if (!bytes.ok()) return bytes.status();
+    // Its frame is the map frame: re-expressed in its first scans' registered frame when the
+    // frame anchor found the graph's tilted (frame_anchor.h).
+    const SessionResult* first = &session;
+    SessionResult anchored;
+    if (session.anchor.accepted) {
+      anchored = session;
+      Reanchor(session.anchor.T_session_scan, session.anchor.first_submap, &anchored.graph,
+               &anchored.submaps);
+      anchored.trajectory.clear();
+      for (const Submap& submap : anchored.submaps) AppendScanPoses(submap, &anchored.trajectory);
+      SortTrajectory(&anchored.trajectory);
+      first = &anchored;
+    }
     MapContents updated;
-    s = AddFirstSession(session, record, files, &updated);
+    s = AddFirstSession(*first, record, files, &updated);
     if (!s.ok()) return s;
     updated.parameters_yaml = map->parameters_yaml;
     updated.files[kDatabaseFile] = std::move(bytes.value());

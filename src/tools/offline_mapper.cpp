@@ -264,7 +264,9 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   }
   PrintMergeReport(merged.value());
   const core::FrameAnchorResult& anchor = result.value().anchor;
-  if (anchor.applied) {
+  if (!merged.value().first_session) {
+    // Later sessions are placed by their loops: the anchor is not used.
+  } else if (anchor.accepted) {
     std::fprintf(stderr,
                  "%s: frame re-anchored on its first scan: moved %.3f m / %.3f deg (overlap %.2f "
                  "with %zu submaps)\n",

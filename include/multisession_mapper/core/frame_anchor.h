@@ -10,10 +10,12 @@
 // The frame anchor registers the first scan against the optimised session around it, leaving
 // out the submap that holds the scan (its content contains the scan's own points, which would
 // pin the result at the identity), and re-expresses the session so that the first scan is the
-// identity again. The content of the submaps does not change; the session moves rigidly.
+// identity again (SessionMerger does so for the first session of a map, whose frame is the map
+// frame). The content of the submaps does not change; the session moves rigidly.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -60,8 +62,11 @@ struct FrameAnchorConfig {
 };
 
 struct FrameAnchorResult {
-  bool applied = false;
-  std::string reason;                          ///< why not applied (empty when applied)
+  /// The correction passed the bounds: SessionMerger re-expresses the map's first session with
+  /// it (later sessions are placed by their loops, whatever their frame).
+  bool accepted = false;
+  std::string reason;                          ///< why not accepted (empty when accepted)
+  std::uint32_t first_submap = 0;              ///< the submap holding the first scan
   Pose3 T_session_scan = Pose3::Identity();    ///< the first scan's registered pose, old frame
   double overlap_ratio = 0.0;
   std::size_t reference_submaps = 0;

@@ -51,8 +51,8 @@ struct SessionMapperConfig {
   PoseGraphConfig pose_graph;
   /// Vertical prior of every finished submap from its walls (vertical_structure.h).
   VerticalStructureConfig vertical_structure;
-  /// After the last optimisation, the session frame is re-anchored on its first scan
-  /// (frame_anchor.h).
+  /// After the last optimisation, the first scans are registered against the other submaps
+  /// (frame_anchor.h); the merger re-anchors the first session of a map with the result.
   FrameAnchorConfig frame_anchor;
   /// Odometry edge noise between consecutive submaps: sigma_t = base + per_m * distance [m],
   /// sigma_r [rad].
@@ -84,7 +84,7 @@ struct SessionResult {
   Trajectory trajectory;    ///< optimised sensor pose of every scan, session frame
   Trajectory odometry;      ///< raw odometry of every scan
   LoopRecords loops;        ///< intra-session candidates and their fate
-  FrameAnchorResult anchor;  ///< the first scan's registration that re-anchored the frame
+  FrameAnchorResult anchor;  ///< the first scans' registration (frame_anchor.h)
   SessionTimings timings;
   std::size_t scans_processed = 0;
   std::size_t scans_skipped = 0;
