@@ -203,6 +203,14 @@ TEST_F(InterSessionMatcherTest, FindsTheRevisitedSubmapsAndTheSessionOffset) {
   EXPECT_EQ(r.registration_s.size(),
             static_cast<std::size_t>(std::count_if(r.records.begin(), r.records.end(),
                                                    [](const LoopRecord& x) { return x.has_pose; })));
+  // Every history submap of an accepted loop had its fine target built, and it is handed over
+  // built like the fine stage's (the merger's proximity search takes it over).
+  const InterSessionMatcherConfig defaults;
+  for (const InterSessionLoop& loop : r.loops) {
+    const auto target = r.history_targets.find(loop.history_index);
+    ASSERT_NE(target, r.history_targets.end()) << "history submap " << loop.history_index;
+    EXPECT_TRUE(target->second->BuiltLike(defaults.registration.fine));
+  }
 }
 
 TEST_F(InterSessionMatcherTest, SequenceConsistencyRejectsASingleContradictingLoop) {

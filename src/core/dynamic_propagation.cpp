@@ -17,8 +17,9 @@ StatusOr<std::vector<std::vector<std::uint32_t>>> FindCopiesOfMarked(
     return Status::Error("propagation radius must be > 0, got " + std::to_string(radius_m));
   }
   std::vector<std::vector<std::uint32_t>> found(clouds.size());
-  // The marked points in the map frame, and their voxels (edge radius_m): a point whose voxel
-  // has no marked neighbour voxel is rejected before the exact kd-tree test.
+  // The marked points in the map frame, and their voxels (edge radius_m) with their neighbours:
+  // a point outside them has no marked point within radius_m and is rejected before the exact
+  // kd-tree test, in one look-up.
   PointVector marked_map;
   VoxelOccupancy near_marked(radius_m);
   for (const MarkedCloud& c : clouds) {
@@ -27,7 +28,7 @@ StatusOr<std::vector<std::vector<std::uint32_t>>> FindCopiesOfMarked(
     for (std::uint32_t k : *c.marked) {
       if (k >= c.points->size()) continue;
       marked_map.push_back(c.T_map * (*c.points)[k]);
-      near_marked.Add(marked_map.back());
+      near_marked.AddWithNeighbours(marked_map.back());
     }
   }
   if (marked_map.empty()) return found;
@@ -37,7 +38,7 @@ StatusOr<std::vector<std::vector<std::uint32_t>>> FindCopiesOfMarked(
     const MarkedCloud& c = clouds[i];
     for (std::size_t k = 0; k < c.points->size(); ++k) {
       const Eigen::Vector3d p = c.T_map * (*c.points)[k];
-      if (!near_marked.Near(p)) continue;
+      if (!near_marked.Occupied(p)) continue;
       if (c.marked != nullptr && c.marked->count(static_cast<std::uint32_t>(k))) continue;
       if (index.value().CountWithin(p, radius_m, 1) > 0) {
         found[i].push_back(static_cast<std::uint32_t>(k));

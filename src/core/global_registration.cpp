@@ -438,6 +438,10 @@ double GlobalRegistration::PrepareSeconds(const PreparedSubmap& submap) {
   return submap.prepare_s;
 }
 
+std::shared_ptr<const SubmapTarget> GlobalRegistration::FineTarget(const PreparedSubmap& submap) {
+  return submap.fine_target;
+}
+
 GlobalRegistrationResult GlobalRegistration::Register(const PointVector& source,
                                                       const PointVector& target) const {
   const auto start = Clock::now();

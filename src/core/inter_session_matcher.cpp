@@ -223,6 +223,17 @@ class PairRegistrar {
     return registered;
   }
 
+  // The fine targets of the history submaps prepared so far.
+  std::map<std::size_t, std::shared_ptr<const SubmapTarget>> HistoryTargets() const {
+    std::map<std::size_t, std::shared_ptr<const SubmapTarget>> targets;
+    for (const auto& [key, prepared] : prepared_) {
+      if (!key.first || !prepared) continue;
+      std::shared_ptr<const SubmapTarget> target = GlobalRegistration::FineTarget(*prepared);
+      if (target) targets[key.second] = std::move(target);
+    }
+    return targets;
+  }
+
  private:
   using Key = std::pair<bool, std::size_t>;  // (history side, submap index)
 
@@ -529,6 +540,7 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
   if (result.aligned && config_.sequence.max_gap_submaps > 0) {
     MatchBySequence(config_, history, current, registered, in_group, &registrar, &result);
   }
+  result.history_targets = registrar.HistoryTargets();
   return result;
 }
 

@@ -337,12 +337,22 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       }
     }
   }
-  // Targets are built once per history submap (kd-tree and normals).
-  std::map<std::size_t, std::shared_ptr<SubmapTarget>> targets;
-  for (const ProximityJob& job : jobs) targets[job.history] = nullptr;
+  // Targets are built once per history submap (kd-tree and normals); those the matching built
+  // the same way are taken over.
+  std::map<std::size_t, std::shared_ptr<const SubmapTarget>> targets;
   std::vector<std::size_t> target_keys;
-  for (const auto& [h, unused] : targets) target_keys.push_back(h);
-  std::vector<std::shared_ptr<SubmapTarget>> built(target_keys.size());
+  for (const ProximityJob& job : jobs) {
+    if (targets.count(job.history)) continue;
+    const auto built_before = m.history_targets.find(job.history);
+    if (built_before != m.history_targets.end() &&
+        built_before->second->BuiltLike(config_.proximity.registration)) {
+      targets[job.history] = built_before->second;
+    } else {
+      targets[job.history] = nullptr;
+      target_keys.push_back(job.history);
+    }
+  }
+  std::vector<std::shared_ptr<const SubmapTarget>> built(target_keys.size());
   ParallelFor(target_keys.size(), config_.num_threads, [&](std::size_t i) {
     StatusOr<SubmapTarget> t =
         SubmapTarget::Create(map->submaps[target_keys[i]].points, config_.proximity.registration);
@@ -351,7 +361,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   for (std::size_t i = 0; i < target_keys.size(); ++i) targets[target_keys[i]] = built[i];
   ParallelFor(jobs.size(), config_.num_threads, [&](std::size_t i) {
     ProximityJob& job = jobs[i];
-    const std::shared_ptr<SubmapTarget>& target = targets[job.history];
+    const std::shared_ptr<const SubmapTarget>& target = targets.at(job.history);
     if (!target) {
       job.result.reason = "history submap unusable as a registration target";
       return;
@@ -359,6 +369,9 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     job.result = registration.value().Register(session.submaps[job.current].points, *target,
                                                job.prior);
   });
+  // The matching's targets are no longer needed (kd-trees of tens of submaps).
+  targets.clear();
+  report.matching.history_targets.clear();
   bool any_proximity = false;
   for (const ProximityJob& job : jobs) {
     LoopRecord r;
@@ -510,14 +523,14 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   }
   VoxelOccupancy overlap_grid(config_.fusion.overlap_distance_m);
   VoxelOccupancy fusion_grid(config_.fusion.voxel_m);
-  for (std::size_t h = 0; h < map->submaps.size(); ++h) {
-    const Pose3 T = pose_of_history(h);
-    for (const Eigen::Vector3d& p : history_points[h]) {
-      const Eigen::Vector3d q = T * p;
-      overlap_grid.Add(q);
-      fusion_grid.Add(q);
+  // Every point of the map goes into both: one grid per thread.
+  ParallelFor(2, config_.num_threads, [&](std::size_t g) {
+    VoxelOccupancy& grid = g == 0 ? overlap_grid : fusion_grid;
+    for (std::size_t h = 0; h < map->submaps.size(); ++h) {
+      const Pose3 T = pose_of_history(h);
+      for (const Eigen::Vector3d& p : history_points[h]) grid.Add(T * p);
     }
-  }
+  });
   std::map<std::size_t, PointVector> added_to_history;  // history index -> points, its frame
   auto nearest_history = [&](const Eigen::Vector3d& p_map,
                              const std::vector<std::size_t>& choices) {
@@ -548,10 +561,11 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       if (add_to_history(h, p)) mended_added[h].push_back(p);
     }
   }
-  std::vector<bool> fused(session.submaps.size(), false);
-  std::vector<std::uint32_t> added_ids, fused_ids;
-  std::size_t fusion_points = 0;
-  for (std::size_t c = 0; c < session.submaps.size(); ++c) {
+  // Per new submap (in parallel, the grids are only read): its overlap with the history, and
+  // when that makes it fused, its static points with no history point near (map frame).
+  std::vector<std::uint8_t> fused(session.submaps.size(), 0);  // not vector<bool>: threads
+  std::vector<PointVector> fusion_candidates(session.submaps.size());
+  ParallelFor(session.submaps.size(), config_.num_threads, [&](std::size_t c) {
     const Submap& cs = session.submaps[c];
     const Pose3 T_map_c = pose_of_current(c);
     const auto dyn = current_dynamic.find(c);
@@ -565,21 +579,30 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       overlapping += overlap_grid.Near(T_map_c * cs.points[k]);
     }
     const double ratio = considered ? static_cast<double>(overlapping) / considered : 0.0;
+    const bool partnered = std::any_of(pairs.begin(), pairs.end(),
+                                       [c](const Pair& p) { return p.current == c; });
+    if (ratio < config_.fusion.min_overlap_ratio || !partnered) return;
+    fused[c] = 1;
+    for (std::size_t k = 0; k < cs.points.size(); ++k) {
+      if (is_dynamic(k)) continue;
+      const Eigen::Vector3d p = T_map_c * cs.points[k];
+      if (!fusion_grid.Near(p)) fusion_candidates[c].push_back(p);
+    }
+  });
+  std::vector<std::uint32_t> added_ids, fused_ids;
+  std::size_t fusion_points = 0;
+  for (std::size_t c = 0; c < session.submaps.size(); ++c) {
+    if (!fused[c]) {
+      added_ids.push_back(session.submaps[c].id);
+      continue;
+    }
+    fused_ids.push_back(session.submaps[c].id);
     std::vector<std::size_t> partners;
     for (const Pair& p : pairs) {
       if (p.current == c) partners.push_back(p.history);
     }
-    if (ratio >= config_.fusion.min_overlap_ratio && !partners.empty()) {
-      fused[c] = true;
-      fused_ids.push_back(cs.id);
-      for (std::size_t k = 0; k < cs.points.size(); ++k) {
-        if (is_dynamic(k)) continue;
-        const Eigen::Vector3d p = T_map_c * cs.points[k];
-        if (fusion_grid.Near(p)) continue;
-        fusion_points += add_to_history(nearest_history(p, partners), p);
-      }
-    } else {
-      added_ids.push_back(cs.id);
+    for (const Eigen::Vector3d& p : fusion_candidates[c]) {
+      fusion_points += add_to_history(nearest_history(p, partners), p);
     }
   }
 

@@ -43,7 +43,18 @@ StatusOr<SubmapTarget> SubmapTarget::Create(const PointVector& points,
   StatusOr<KdTreeTarget> tree =
       KdTreeTarget::Create(VoxelDownsample(points, config.target_voxel_m), config.target);
   if (!tree.ok()) return tree.status();
-  return SubmapTarget(std::make_shared<KdTreeTarget>(std::move(tree.value())));
+  return SubmapTarget(std::make_shared<KdTreeTarget>(std::move(tree.value())),
+                      config.target_voxel_m, config.target);
+}
+
+bool SubmapTarget::BuiltLike(const SubmapRegistrationConfig& config) const {
+  const KdTreeTargetConfig& t = config.target;
+  return voxel_m_ == config.target_voxel_m && built_.normal_neighbors == t.normal_neighbors &&
+         built_.max_normal_radius_m == t.max_normal_radius_m &&
+         built_.plane.min_points == t.plane.min_points &&
+         built_.plane.max_flatness == t.plane.max_flatness &&
+         built_.plane.min_mid_to_max == t.plane.min_mid_to_max &&
+         built_.plane.min_mid_std_m == t.plane.min_mid_std_m;
 }
 
 StatusOr<SubmapRegistration> SubmapRegistration::Create(const SubmapRegistrationConfig& config) {

@@ -131,6 +131,9 @@ class GlobalRegistration {
                                                           bool as_target) const;
   /// Time spent preparing `submap` [s].
   static double PrepareSeconds(const PreparedSubmap& submap);
+  /// The fine-stage target of a submap prepared with as_target (null otherwise), built with
+  /// config().fine.
+  static std::shared_ptr<const SubmapTarget> FineTarget(const PreparedSubmap& submap);
   /// Aligns two prepared submaps (`target` prepared with as_target); time_s excludes the
   /// preparation.
   GlobalRegistrationResult Register(const PreparedSubmap& source,

@@ -14,6 +14,8 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -117,6 +119,11 @@ struct InterSessionMatchResult {
   /// Per current submap: the vote (ordered like SessionResult::submaps).
   std::vector<SubmapVoteResult> votes;
   std::vector<double> registration_s;  ///< time per registered candidate pair [s]
+  /// The fine-registration targets built for history submaps (key: index into
+  /// MapContents::submaps), with registration.fine; the merger's proximity search reuses those
+  /// built like its own (SubmapTarget::BuiltLike) instead of building them again, and then
+  /// releases them (MergeReport::matching holds none).
+  std::map<std::size_t, std::shared_ptr<const SubmapTarget>> history_targets;
   /// Estimate of T_map_session from the accepted group (identity when no loop was accepted).
   Pose3 T_map_session = Pose3::Identity();
   bool aligned = false;  ///< at least one consistent group was accepted

@@ -67,10 +67,16 @@ class SubmapTarget {
   static StatusOr<SubmapTarget> Create(const PointVector& points,
                                        const SubmapRegistrationConfig& config);
   const KdTreeTarget& tree() const { return *tree_; }
+  /// Create() of the same points with `config` would build this very target (same target
+  /// voxel and normal settings): a target built by one stage can serve another.
+  bool BuiltLike(const SubmapRegistrationConfig& config) const;
 
  private:
-  explicit SubmapTarget(std::shared_ptr<KdTreeTarget> tree) : tree_(std::move(tree)) {}
+  SubmapTarget(std::shared_ptr<KdTreeTarget> tree, double voxel_m, const KdTreeTargetConfig& built)
+      : tree_(std::move(tree)), voxel_m_(voxel_m), built_(built) {}
   std::shared_ptr<KdTreeTarget> tree_;
+  double voxel_m_ = 0.0;
+  KdTreeTargetConfig built_;
 };
 
 class SubmapRegistration {
