@@ -371,8 +371,7 @@ StatusOr<SessionResult> SessionMapper::Finish() {
     result.anchor = EstimateFirstScanPose(st.first_scan, st.submaps, st.first_submap,
                                           st.config.frame_anchor);
   }
-  for (Submap& submap : st.submaps) AppendScanPoses(submap, &result.trajectory);
-  SortTrajectory(&result.trajectory);
+  result.trajectory = ScanTrajectory(st.submaps);
   result.submaps = std::move(st.submaps);
   result.graph = st.graph;
   result.odometry = st.split ? st.split_odometry : st.odometry.trajectory();

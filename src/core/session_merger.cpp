@@ -168,9 +168,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       anchored = session;
       Reanchor(session.anchor.T_session_scan, session.anchor.first_submap, &anchored.graph,
                &anchored.submaps);
-      anchored.trajectory.clear();
-      for (const Submap& submap : anchored.submaps) AppendScanPoses(submap, &anchored.trajectory);
-      SortTrajectory(&anchored.trajectory);
+      anchored.trajectory = ScanTrajectory(anchored.submaps);
       first = &anchored;
     }
     MapContents updated;

@@ -34,5 +34,12 @@ void SortTrajectory(Trajectory* trajectory) {
                     trajectory->end());
 }
 
+Trajectory ScanTrajectory(const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submaps) {
+  Trajectory trajectory;
+  for (const Submap& submap : submaps) AppendScanPoses(submap, &trajectory);
+  SortTrajectory(&trajectory);
+  return trajectory;
+}
+
 }  // namespace core
 }  // namespace multisession_mapper

@@ -45,6 +45,8 @@ const char* SubmapStateName(SubmapState state);
 void AppendScanPoses(const Submap& submap, Trajectory* out);
 /// Sorts by stamp and keeps one pose per stamp (a scan can belong to two overlapping submaps).
 void SortTrajectory(Trajectory* trajectory);
+/// The scan poses of all `submaps`, sorted by stamp, one per stamp (the two calls above).
+Trajectory ScanTrajectory(const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submaps);
 
 }  // namespace core
 }  // namespace multisession_mapper
