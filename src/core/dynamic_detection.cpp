@@ -297,6 +297,7 @@ class PairDetection {
       if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
           coarse >= config_.min_cluster_coarse_points && grounded) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
+        if (config_.bottom_extension_radius_m > 0.0) ExtendDown(s, cluster, &visited, &dynamic);
       }
     }
     std::sort(dynamic.begin(), dynamic.end());
@@ -360,6 +361,36 @@ class PairDetection {
   }
 
  private:
+  // Adds the points below an accepted object down to bottom_min_height_m above the ground
+  // (marked in `taken`): within bottom_extension_radius_m horizontally of an object point and
+  // at most bottom_max_drop_m below it, repeated from each added point, and not common with
+  // the other session (the ground beside the object, seen by both, stays).
+  void ExtendDown(int s, const std::vector<std::uint32_t>& object, std::vector<std::uint8_t>* taken,
+                  std::vector<std::uint32_t>* dynamic) const {
+    const Side& side = sides_[s];
+    const double r = config_.bottom_extension_radius_m;
+    const double search = std::hypot(r, config_.bottom_max_drop_m);
+    const float min_h = static_cast<float>(config_.bottom_min_height_m);
+    const float tol = static_cast<float>(config_.ground_tolerance_m);
+    std::deque<std::uint32_t> queue(object.begin(), object.end());
+    std::vector<std::uint32_t> neighbours;
+    while (!queue.empty()) {
+      const std::uint32_t i = queue.front();
+      queue.pop_front();
+      const Eigen::Vector3d& p = side.points[i];
+      indices_[s].Radius(p, search, &neighbours);
+      for (std::uint32_t j : neighbours) {
+        if ((*taken)[j] || side.height_m[j] < min_h || side.height_m[j] >= tol) continue;
+        if (side.common[j]) continue;  // the other session has it too: ground beside the object
+        const Eigen::Vector3d d = p - side.points[j];
+        if (d.z() <= 0.0 || d.z() > config_.bottom_max_drop_m || d.head<2>().norm() > r) continue;
+        (*taken)[j] = 1;
+        dynamic->push_back(j);
+        queue.push_back(j);
+      }
+    }
+  }
+
   // Breadth-first growth over side s from `seed` (already taken) with neighbour radius
   // radius_m: neighbour j joins when take(j) says so (take marks it). `cluster` gets the
   // seed and every point that joined.
@@ -656,6 +687,13 @@ Status DynamicDetectionConfig::Validate() const {
   }
   if (!std::isfinite(max_object_bottom_m) || max_object_bottom_m < 0.0) {
     return Status::Error("dynamic_detection.max_object_bottom_m must be >= 0 (0: off)");
+  }
+  if (!std::isfinite(bottom_extension_radius_m) || bottom_extension_radius_m < 0.0 ||
+      !std::isfinite(bottom_min_height_m) || bottom_min_height_m < 0.0 ||
+      !std::isfinite(bottom_max_drop_m) || bottom_max_drop_m <= 0.0) {
+    return Status::Error(
+        "dynamic_detection: bottom_extension_radius_m and bottom_min_height_m must be >= 0 "
+        "(radius 0: off), bottom_max_drop_m > 0");
   }
   if (voxel_size_m < 0.01) {
     return Status::Error("dynamic_detection.voxel_size_m must be >= 0.01 (memory), got " +

@@ -411,6 +411,9 @@ int main(int argc, char** argv) {
       else if (key == "min_cluster_points") config.min_cluster_points = static_cast<int>(v);
       else if (key == "min_cluster_coarse_points") config.min_cluster_coarse_points = static_cast<int>(v);
       else if (key == "max_object_bottom_m") config.max_object_bottom_m = v;
+      else if (key == "bottom_extension_radius_m") config.bottom_extension_radius_m = v;
+      else if (key == "bottom_min_height_m") config.bottom_min_height_m = v;
+      else if (key == "bottom_max_drop_m") config.bottom_max_drop_m = v;
       else if (key == "max_range_m") config.max_range_m = v;
       else if (key == "end_margin_m") config.end_margin_m = v;
       else if (key == "rays_per_point") config.rays_per_point = static_cast<int>(v);
@@ -517,6 +520,9 @@ int main(int argc, char** argv) {
     long canopy = 0, canopy_kept = 0, low = 0, low_removed = 0, high = 0, high_removed = 0;
     long low_unobserved = 0, unlabelled = 0, low_replaced = 0, low_replaced_removed = 0;
     std::map<std::uint32_t, std::pair<long, long>> vacated_objects;
+    // Vacated low-dynamic points by height above their object's bottom (0.25 m bins).
+    constexpr int kHeightBins = 12;
+    long vacated_by_height[kHeightBins][2] = {};  // points, removed
     long static_removed_by_class[sim::kNumObjectClasses] = {};
     for (int s = 0; s < 2; ++s) {
       const SessionData& d = s == 0 ? H : C;
@@ -539,9 +545,16 @@ int main(int argc, char** argv) {
                 ++low_replaced;
                 low_replaced_removed += removed;
               } else if (per_object) {
-                auto& counts = vacated_objects[d.objects[m][i]];
+                const std::uint32_t id = d.objects[m][i];
+                auto& counts = vacated_objects[id];
                 ++counts.first;
                 counts.second += removed;
+                const WorldObject& obj = objects[id];
+                const double above =
+                    (d.T_world_submap[m] * d.submaps[m].points[i]).z() - (obj.pose[2] - obj.size[2] / 2.0);
+                const int bin = std::min(std::max(static_cast<int>(above / 0.25), 0), kHeightBins - 1);
+                ++vacated_by_height[bin][0];
+                vacated_by_height[bin][1] += removed;
               }
             } else {
               ++low_unobserved;
@@ -605,6 +618,13 @@ int main(int argc, char** argv) {
                 pct(low_replaced_removed, low_replaced), low_replaced_removed, low_replaced,
                 pct(low_removed - low_replaced_removed, low - low_replaced),
                 low_removed - low_replaced_removed, low - low_replaced);
+    if (per_object) {
+      std::printf("    vacated points by height above the object's bottom (0.25 m bins, removed/all):");
+      for (int b = 0; b < kHeightBins; ++b) {
+        std::printf(" %.2f: %ld/%ld", 0.25 * b, vacated_by_height[b][1], vacated_by_height[b][0]);
+      }
+      std::printf("\n");
+    }
     for (const auto& [id, counts] : vacated_objects) {
       std::printf("    vacated object %u (%s, %.1f x %.1f x %.1f m): %ld/%ld points removed\n", id,
                   objects[id].cls.c_str(), objects[id].size[0], objects[id].size[1],
