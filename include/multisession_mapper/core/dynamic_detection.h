@@ -13,7 +13,9 @@
 //  4. Region growing turns the coarse dynamic points into the final dynamic points; a height
 //     guard (points higher than `height_guard_m` above the local ground are never coarse
 //     dynamic points, and dynamic only as part of an object grown from below them, at most
-//     `guard_object_height_m` high) can be switched off.
+//     `guard_object_height_m` high) can be switched off. A detected object also takes the
+//     points below it that the ground tolerance left out (wheels, lower body) when the other
+//     session has no partner for them (`bottom_extension_radius_m`).
 //  5. Changed objects (an addition to the paper): another object in the same place, e.g. a
 //     parking slot taken by a different car each day. Neither session sees through the other's
 //     car, and their shared surfaces (sides within d_beta, roofs) make most of both common, so
