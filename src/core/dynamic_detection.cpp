@@ -372,43 +372,47 @@ class PairDetection {
     const double search = std::hypot(r, config_.bottom_max_drop_m);
     const float min_h = static_cast<float>(config_.bottom_min_height_m);
     const float tol = static_cast<float>(config_.ground_tolerance_m);
-    std::deque<std::uint32_t> queue(object.begin(), object.end());
+    Spread(s, std::deque<std::uint32_t>(object.begin(), object.end()), search,
+           [&](std::uint32_t i, std::uint32_t j) {
+             if ((*taken)[j] || side.height_m[j] < min_h || side.height_m[j] >= tol) return false;
+             // The other session has it too: ground beside the object.
+             if (side.common[j]) return false;
+             const Eigen::Vector3d d = side.points[i] - side.points[j];
+             if (d.z() <= 0.0 || d.z() > config_.bottom_max_drop_m || d.head<2>().norm() > r) {
+               return false;
+             }
+             (*taken)[j] = 1;
+             dynamic->push_back(j);
+             return true;
+           },
+           nullptr);
+  }
+
+  // Breadth-first spread over side s from the points in `queue` (already taken): each point
+  // taken from the queue goes to `reached` (when given), and its neighbour j within radius_m
+  // joins the queue when take(i, j) says so (take marks it). The region growings of all steps.
+  template <typename Take>
+  void Spread(int s, std::deque<std::uint32_t> queue, double radius_m, Take take,
+              std::vector<std::uint32_t>* reached) const {
     std::vector<std::uint32_t> neighbours;
     while (!queue.empty()) {
       const std::uint32_t i = queue.front();
       queue.pop_front();
-      const Eigen::Vector3d& p = side.points[i];
-      indices_[s].Radius(p, search, &neighbours);
+      if (reached != nullptr) reached->push_back(i);
+      indices_[s].Radius(sides_[s].points[i], radius_m, &neighbours);
       for (std::uint32_t j : neighbours) {
-        if ((*taken)[j] || side.height_m[j] < min_h || side.height_m[j] >= tol) continue;
-        if (side.common[j]) continue;  // the other session has it too: ground beside the object
-        const Eigen::Vector3d d = p - side.points[j];
-        if (d.z() <= 0.0 || d.z() > config_.bottom_max_drop_m || d.head<2>().norm() > r) continue;
-        (*taken)[j] = 1;
-        dynamic->push_back(j);
-        queue.push_back(j);
+        if (take(i, j)) queue.push_back(j);
       }
     }
   }
 
-  // Breadth-first growth over side s from `seed` (already taken) with neighbour radius
-  // radius_m: neighbour j joins when take(j) says so (take marks it). `cluster` gets the
-  // seed and every point that joined.
+  // Euclidean growth from one `seed` (already taken): neighbour j joins when take(j) says so.
+  // `cluster` gets the seed and every point that joined.
   template <typename Take>
   void Grow(int s, std::uint32_t seed, double radius_m, Take take,
             std::vector<std::uint32_t>* cluster) const {
     cluster->clear();
-    std::deque<std::uint32_t> queue{seed};
-    std::vector<std::uint32_t> neighbours;
-    while (!queue.empty()) {
-      const std::uint32_t i = queue.front();
-      queue.pop_front();
-      cluster->push_back(i);
-      indices_[s].Radius(sides_[s].points[i], radius_m, &neighbours);
-      for (std::uint32_t j : neighbours) {
-        if (take(j)) queue.push_back(j);
-      }
-    }
+    Spread(s, {seed}, radius_m, [&](std::uint32_t, std::uint32_t j) { return take(j); }, cluster);
   }
 
   // An object of movable size standing on the ground with mostly planar surfaces.
@@ -554,16 +558,13 @@ class PairDetection {
         }
       }
     }
-    while (!queue.empty()) {
-      const std::uint32_t i = queue.front();
-      queue.pop_front();
-      indices_[s].Radius(side.points[i], config_.grow_radius_m, &neighbours);
-      for (std::uint32_t j : neighbours) {
-        if (side.common[j] || !Compatible(s, i, j)) continue;
-        side.common[j] = 2;
-        queue.push_back(j);
-      }
-    }
+    Spread(s, std::move(queue), config_.grow_radius_m,
+           [&](std::uint32_t i, std::uint32_t j) {
+             if (side.common[j] || !Compatible(s, i, j)) return false;
+             side.common[j] = 2;
+             return true;
+           },
+           nullptr);
   }
 
   // Rays from the thinned origins of side s to its points; counts the passes through voxels

@@ -562,6 +562,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   // Per new submap (in parallel, the grids are only read): its overlap with the history, and
   // when that makes it fused, its static points with no history point near (map frame).
   std::vector<std::uint8_t> fused(session.submaps.size(), 0);  // not vector<bool>: threads
+  std::vector<std::vector<std::size_t>> partners(session.submaps.size());  // its pairs' history
+  for (const Pair& p : pairs) partners[p.current].push_back(p.history);
   std::vector<PointVector> fusion_candidates(session.submaps.size());
   ParallelFor(session.submaps.size(), config_.num_threads, [&](std::size_t c) {
     const Submap& cs = session.submaps[c];
@@ -577,9 +579,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       overlapping += overlap_grid.Near(T_map_c * cs.points[k]);
     }
     const double ratio = considered ? static_cast<double>(overlapping) / considered : 0.0;
-    const bool partnered = std::any_of(pairs.begin(), pairs.end(),
-                                       [c](const Pair& p) { return p.current == c; });
-    if (ratio < config_.fusion.min_overlap_ratio || !partnered) return;
+    if (ratio < config_.fusion.min_overlap_ratio || partners[c].empty()) return;
     fused[c] = 1;
     for (std::size_t k = 0; k < cs.points.size(); ++k) {
       if (is_dynamic(k)) continue;
@@ -595,12 +595,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       continue;
     }
     fused_ids.push_back(session.submaps[c].id);
-    std::vector<std::size_t> partners;
-    for (const Pair& p : pairs) {
-      if (p.current == c) partners.push_back(p.history);
-    }
     for (const Eigen::Vector3d& p : fusion_candidates[c]) {
-      fusion_points += add_to_history(nearest_history(p, partners), p);
+      fusion_points += add_to_history(nearest_history(p, partners[c]), p);
     }
   }
 
