@@ -5,10 +5,12 @@
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <string>
 #include <unordered_map>
 
 #include <gtest/gtest.h>
 
+#include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/voxel_key.h"
 
 namespace multisession_mapper {
@@ -616,6 +618,37 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   ASSERT_TRUE(empty.ok());
   EXPECT_TRUE(empty.value().history_dynamic.empty());
   EXPECT_TRUE(empty.value().current_dynamic.empty());
+}
+
+// The merge builds one neighbour index per current submap and shares it between that
+// submap's pairs: the result is the same as with the index built inside; an index over other
+// points is refused.
+TEST(DynamicDetectionTest, SharedCurrentIndexGivesTheSameResult) {
+  const SessionData history = MakeSession(Scene{true}, 0.0, 11, HistoryFrame());
+  const SessionData current = MakeSession(Scene{false}, 0.3, 12, Pose3::Identity());
+  StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());
+  ASSERT_TRUE(detector.ok());
+  const StatusOr<DynamicDetectionResult> own =
+      detector.value().Detect(history.submap, current.submap, HistoryFrame());
+  ASSERT_TRUE(own.ok()) << own.status().message();
+  StatusOr<PointIndex> index = PointIndex::Create(current.submap.points);
+  ASSERT_TRUE(index.ok());
+  for (int pair = 0; pair < 2; ++pair) {  // used twice, as by two pairs
+    const StatusOr<DynamicDetectionResult> shared =
+        detector.value().Detect(history.submap, current.submap, HistoryFrame(), index.value());
+    ASSERT_TRUE(shared.ok()) << shared.status().message();
+    EXPECT_FALSE(shared.value().history_dynamic.empty());
+    EXPECT_EQ(shared.value().history_dynamic, own.value().history_dynamic);
+    EXPECT_EQ(shared.value().current_dynamic, own.value().current_dynamic);
+    EXPECT_EQ(shared.value().current_mending, own.value().current_mending);
+  }
+  StatusOr<PointIndex> other = PointIndex::Create(history.submap.points);
+  ASSERT_TRUE(other.ok());
+  ASSERT_NE(history.submap.points.size(), current.submap.points.size());
+  const StatusOr<DynamicDetectionResult> wrong =
+      detector.value().Detect(history.submap, current.submap, HistoryFrame(), other.value());
+  ASSERT_FALSE(wrong.ok());
+  EXPECT_NE(wrong.status().message().find("index"), std::string::npos);
 }
 
 }  // namespace

@@ -127,14 +127,15 @@ class GroundGrid {
 
 class PairDetection {
  public:
-  PairDetection(const DynamicDetectionConfig& config, Side* sides, const PointIndex* indices)
-      : config_(config), sides_(sides), indices_(indices) {}
+  PairDetection(const DynamicDetectionConfig& config, Side* sides, const PointIndex& history,
+                const PointIndex& current)
+      : config_(config), sides_(sides), indices_{&history, &current} {}
 
   // Steps 1-2: seeds and region growing of the common parts.
   void FindCommonParts() {
     for (int s = 0; s < 2; ++s) {
       Side& side = sides_[s];
-      const PointIndex& other = indices_[1 - s];
+      const PointIndex& other = *indices_[1 - s];
       const std::size_t n = side.points.size();
       side.common.assign(n, 0);
       side.nearest_other_m.assign(n, std::numeric_limits<float>::infinity());
@@ -206,7 +207,7 @@ class PairDetection {
     coarse_ = std::make_unique<RayVoxelGrid>(std::move(coarse.value()));
     for (int s = 0; s < 2; ++s) {
       for (const Eigen::Vector3d& p : sides_[s].points) {
-        grid_->Touch(grid_->KeyOf(p))->flags |= kOccupied[s];
+        grid_->Mark(grid_->KeyOf(p), kOccupied[s]);
       }
     }
     for (int s = 0; s < 2; ++s) {
@@ -219,18 +220,17 @@ class PairDetection {
             (side.common[i] && side.nearest_other_m[i] <= config_.mending_distance_m)) {
           continue;
         }
-        auto query = [&](const Eigen::Vector3i& key, RayVoxelGrid::Cell* cell) {
-          cell->flags |= kQueried[s];
+        auto query = [&](const Eigen::Vector3i& key) {
+          grid_->Mark(key, kQueried[s]);
           coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= kQueried[s];
         };
-        const Eigen::Vector3i point_key = grid_->KeyOf(side.points[i]);
-        query(point_key, grid_->Find(point_key));
+        query(grid_->KeyOf(side.points[i]));
         // The free column below (only for points that can become dynamic).
         if (side.common[i]) continue;
         ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
-          RayVoxelGrid::Cell* cell = grid_->Touch(key);
+          const RayVoxelGrid::Cell* cell = grid_->Touch(key);
           if (cell == nullptr || (cell->flags & kOccupied[s])) return false;
-          query(key, cell);
+          query(key);
           return true;
         });
       }
@@ -255,7 +255,7 @@ class PairDetection {
           config_.height_guard_enabled && side.height_m[i] > config_.height_guard_m;
       if (above_guard && side.height_m[i] > config_.guard_object_height_m) continue;
       // Consistency: the other session has nothing above the ground around the point.
-      indices_[other].Radius(side.points[i], config_.support_radius_m, &neighbours);
+      indices_[other]->Radius(side.points[i], config_.support_radius_m, &neighbours);
       int support = 0;
       for (std::uint32_t j : neighbours) {
         if (sides_[other].height_m[j] >= config_.ground_tolerance_m) ++support;
@@ -399,7 +399,7 @@ class PairDetection {
       const std::uint32_t i = queue.front();
       queue.pop_front();
       if (reached != nullptr) reached->push_back(i);
-      indices_[s].Radius(sides_[s].points[i], radius_m, &neighbours);
+      indices_[s]->Radius(sides_[s].points[i], radius_m, &neighbours);
       for (std::uint32_t j : neighbours) {
         if (take(i, j)) queue.push_back(j);
       }
@@ -447,7 +447,7 @@ class PairDetection {
     Eigen::Vector3f normal;
     for (std::uint32_t i : cluster) {
       const Eigen::Vector3d& p = sides_[s].points[i];
-      indices_[other].Nearest(p, 8, config_.changed_neighbour_radius_m, &neighbours);
+      indices_[other]->Nearest(p, 8, config_.changed_neighbour_radius_m, &neighbours);
       bool any = false, planar = false, on_surface = false;
       for (std::uint32_t j : neighbours) {
         if (theirs.height_m[j] < config_.ground_tolerance_m) continue;
@@ -549,7 +549,7 @@ class PairDetection {
     std::deque<std::uint32_t> queue;
     for (std::size_t i = 0; i < side.points.size(); ++i) {
       if (side.common[i]) continue;
-      indices_[s].Radius(side.points[i], config_.grow_radius_m, &neighbours);
+      indices_[s]->Radius(side.points[i], config_.grow_radius_m, &neighbours);
       for (std::uint32_t j : neighbours) {
         if (side.common[j] == 1 && Compatible(s, static_cast<std::uint32_t>(i), j)) {
           side.common[i] = 2;  // grown (2) rather than seed (1): no effect beyond bookkeeping
@@ -609,16 +609,26 @@ class PairDetection {
         if (!relevant) continue;
         passed.clear();
         bool blocked = false;
-        grid_->Traverse(o, p, [&](RayVoxelGrid::Cell* cell, double entry_m) {
-          if (entry_m >= free_until) return false;
-          if (cell == nullptr) return true;
-          if ((cell->flags & own) && entry_m > origin_clearance_m) {
-            blocked = true;
-            return false;
-          }
-          if (cell->flags & query) passed.push_back(cell);
-          return true;
-        });
+        // The walk goes backwards, from where the examined stretch ends to the origin: half of
+        // these rays are blocked by their own session, two thirds of those within the last
+        // fifth of the ray (grazing their own surface near the point), and stop early. An own
+        // voxel blocks when the ray enters it (coming from the origin) beyond the clearance,
+        // that is where the backward walk leaves it; the voxel of the origin never blocks.
+        // Blocks without an own occupied or a queried voxel can neither block nor count.
+        const Eigen::Vector3d end = o + (p - o) * (free_until / length);
+        bool previous_own = false;
+        grid_->Traverse(
+            end, o,
+            [&](RayVoxelGrid::Cell* cell, double back_m) {
+              if (previous_own && free_until - back_m > origin_clearance_m) {
+                blocked = true;
+                return false;
+              }
+              previous_own = cell != nullptr && (cell->flags & own);
+              if (cell != nullptr && (cell->flags & query)) passed.push_back(cell);
+              return true;
+            },
+            static_cast<std::uint8_t>(own | query));
         if (blocked) continue;
         for (RayVoxelGrid::Cell* cell : passed) {
           if (cell->count[s] < 255) ++cell->count[s];
@@ -629,7 +639,7 @@ class PairDetection {
 
   const DynamicDetectionConfig& config_;
   Side* sides_;
-  const PointIndex* indices_;
+  const PointIndex* indices_[2];  // kHistory, kCurrent
   std::unique_ptr<RayVoxelGrid> grid_;
   std::unique_ptr<RayVoxelGrid> coarse_;
   LocalPlaneCriteria plane_;
@@ -739,7 +749,29 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
                                                          const Submap& current,
                                                          const Pose3& T_current_history) const {
   const auto start = std::chrono::steady_clock::now();
+  StatusOr<PointIndex> current_index = PointIndex::Create(current.points);
+  if (!current_index.ok()) return current_index.status();
+  StatusOr<DynamicDetectionResult> result =
+      Detect(history, current, T_current_history, current_index.value());
+  if (result.ok()) {
+    result.value().time_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return result;
+}
+
+StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
+                                                         const Submap& current,
+                                                         const Pose3& T_current_history,
+                                                         const PointIndex& current_index) const {
+  const auto start = std::chrono::steady_clock::now();
   DynamicDetectionResult result;
+  if (current_index.size() != current.points.size()) {
+    return Status::Error("dynamic_detection: the index of submap " + current.session + "/" +
+                         std::to_string(current.id) + " holds " +
+                         std::to_string(current_index.size()) + " points, the submap " +
+                         std::to_string(current.points.size()));
+  }
   if (history.points.empty() || current.points.empty()) return result;
   if (history.scans.empty() || current.scans.empty()) {
     return Status::Error("dynamic_detection: submap " +
@@ -758,12 +790,8 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
 
   StatusOr<PointIndex> history_index = PointIndex::Create(sides[kHistory].points);
   if (!history_index.ok()) return history_index.status();
-  StatusOr<PointIndex> current_index = PointIndex::Create(sides[kCurrent].points);
-  if (!current_index.ok()) return current_index.status();
-  const PointIndex indices[2] = {std::move(history_index.value()),
-                                 std::move(current_index.value())};
 
-  PairDetection pair(config_, sides, indices);
+  PairDetection pair(config_, sides, history_index.value(), current_index);
   pair.EstimateGround();
   pair.FindCommonParts();
   const Status cast = pair.CastRays();

@@ -13,6 +13,7 @@
 
 #include "multisession_mapper/core/dynamic_propagation.h"
 #include "multisession_mapper/core/parallel_for.h"
+#include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/voxel_occupancy.h"
 
 namespace multisession_mapper {
@@ -428,13 +429,33 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
                                                            Status::Error("not run"));
   auto pose_of_history = [&](std::size_t h) { return graph.NodePose(history_node(h)); };
   auto pose_of_current = [&](std::size_t c) { return graph.NodePose(current_node(c)); };
-  ParallelFor(pairs.size(), config_.num_threads, [&](std::size_t i) {
-    const Pair& p = pairs[i];
-    const Pose3 T_current_history =
-        pose_of_current(p.current).inverse() * pose_of_history(p.history);
-    detections[i] =
-        detector.value().Detect(map->submaps[p.history], session.submaps[p.current],
-                                T_current_history);
+  // The pairs of one current submap share its neighbour index (built once, in its own frame,
+  // which is the frame of the detection).
+  std::map<std::size_t, std::vector<std::size_t>> pairs_of_current;
+  for (std::size_t i = 0; i < pairs.size(); ++i) pairs_of_current[pairs[i].current].push_back(i);
+  std::vector<std::vector<std::size_t>> groups;
+  for (auto& entry : pairs_of_current) groups.push_back(std::move(entry.second));
+  ParallelFor(groups.size(), config_.num_threads, [&](std::size_t g) {
+    const std::vector<std::size_t>& members = groups[g];
+    const Submap& cs = session.submaps[pairs[members.front()].current];
+    const auto index_start = std::chrono::steady_clock::now();
+    StatusOr<PointIndex> index = PointIndex::Create(cs.points);
+    // Each pair's time includes its share of the index.
+    const double index_share_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - index_start).count() /
+        static_cast<double>(members.size());
+    for (std::size_t i : members) {
+      if (!index.ok()) {
+        detections[i] = index.status();
+        continue;
+      }
+      const Pair& p = pairs[i];
+      const Pose3 T_current_history =
+          pose_of_current(p.current).inverse() * pose_of_history(p.history);
+      detections[i] = detector.value().Detect(map->submaps[p.history], cs, T_current_history,
+                                              index.value());
+      if (detections[i].ok()) detections[i].value().time_s += index_share_s;
+    }
   });
   std::map<std::size_t, std::set<std::uint32_t>> removed;  // history index -> point indices
   std::map<std::size_t, std::set<std::uint32_t>> current_dynamic;

@@ -62,6 +62,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/submap.h"
 #include "multisession_mapper/core/types.h"
@@ -226,6 +227,12 @@ class DynamicDetector {
   /// empty result; a non-empty submap without scan origins is an error (no free space known).
   StatusOr<DynamicDetectionResult> Detect(const Submap& history, const Submap& current,
                                           const Pose3& T_current_history) const;
+  /// The same with a prebuilt index over `current.points` (in the current frame), which every
+  /// pair of the same current submap can share; an index of another size is an error.
+  /// `time_s` then leaves out the index's construction.
+  StatusOr<DynamicDetectionResult> Detect(const Submap& history, const Submap& current,
+                                          const Pose3& T_current_history,
+                                          const PointIndex& current_index) const;
 
   const DynamicDetectionConfig& config() const { return config_; }
 
