@@ -44,6 +44,7 @@
 
 #include "multisession_mapper/core/icp_registration.h"
 #include "multisession_mapper/core/kdtree_target.h"
+#include "multisession_mapper/core/remembering_kdtree.h"
 #include "multisession_mapper/core/se3.h"
 #include "multisession_mapper/core/voxel_downsample.h"
 
@@ -91,7 +92,7 @@ CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationC
     xyz->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
                                  static_cast<float>(p.z())));
   }
-  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new RememberingKdTree(config.feature_radius_m));
   pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
   pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> normal_estimation;
   normal_estimation.setInputCloud(xyz);
