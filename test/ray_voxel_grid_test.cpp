@@ -169,44 +169,6 @@ TEST(RayVoxelGridTest, VisitorCanStopAndSeesTouchedCells) {
   EXPECT_EQ(visited, 1);
 }
 
-TEST(RayVoxelGridTest, BlockFlagsSkipBlocksWithoutMarkedFlags) {
-  StatusOr<RayVoxelGrid> grid =
-      RayVoxelGrid::Create(0.5, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(20, 10, 10));
-  ASSERT_TRUE(grid.ok());
-  RayVoxelGrid& g = grid.value();
-  // Block x in [0, 4): a cell with flag 2 only. Block [4, 8): flag 1 by Mark(). Block [8, 12):
-  // flag 1 set directly, without Mark() (not in the block summary).
-  ASSERT_NE(g.Mark(g.KeyOf(Eigen::Vector3d(1.2, 1.2, 1.2)), 2), nullptr);
-  RayVoxelGrid::Cell* marked = g.Mark(g.KeyOf(Eigen::Vector3d(5.2, 1.2, 1.2)), 1);
-  ASSERT_NE(marked, nullptr);
-  EXPECT_EQ(marked->flags, 1);
-  EXPECT_EQ(g.Mark(Eigen::Vector3i(-1, 0, 0), 1), nullptr);  // outside
-  g.Touch(g.KeyOf(Eigen::Vector3d(9.2, 1.2, 1.2)))->flags = 1;
-  auto walk = [&](std::uint8_t block_flags, std::vector<double>* hits) {
-    int visits = 0;
-    g.Traverse(Eigen::Vector3d(0.2, 1.2, 1.2), Eigen::Vector3d(11.8, 1.2, 1.2),
-               [&](RayVoxelGrid::Cell* cell, double entry_m) {
-                 ++visits;
-                 if (cell != nullptr && (cell->flags & 1)) hits->push_back(entry_m);
-                 return true;
-               },
-               block_flags);
-    return visits;
-  };
-  std::vector<double> all_hits, skipping_hits;
-  const int all_visits = walk(0, &all_hits);
-  const int skipping_visits = walk(1, &skipping_hits);
-  EXPECT_EQ(all_visits, 24);  // three touched blocks of 8 voxels each
-  ASSERT_EQ(all_hits.size(), 2u);
-  EXPECT_NEAR(all_hits[0], 4.8, 1e-9);
-  EXPECT_NEAR(all_hits[1], 8.8, 1e-9);
-  // With block flag 1 the first and the third block are visited once each (the third one's
-  // cell has flag 1, but not from Mark()); the marked cell is still found.
-  EXPECT_EQ(skipping_visits, 1 + 8 + 1);
-  ASSERT_EQ(skipping_hits.size(), 1u);
-  EXPECT_NEAR(skipping_hits[0], 4.8, 1e-9);
-}
-
 }  // namespace
 }  // namespace core
 }  // namespace multisession_mapper

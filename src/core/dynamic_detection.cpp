@@ -207,7 +207,7 @@ class PairDetection {
     coarse_ = std::make_unique<RayVoxelGrid>(std::move(coarse.value()));
     for (int s = 0; s < 2; ++s) {
       for (const Eigen::Vector3d& p : sides_[s].points) {
-        grid_->Mark(grid_->KeyOf(p), kOccupied[s]);
+        grid_->Touch(grid_->KeyOf(p))->flags |= kOccupied[s];
       }
     }
     for (int s = 0; s < 2; ++s) {
@@ -220,17 +220,18 @@ class PairDetection {
             (side.common[i] && side.nearest_other_m[i] <= config_.mending_distance_m)) {
           continue;
         }
-        auto query = [&](const Eigen::Vector3i& key) {
-          grid_->Mark(key, kQueried[s]);
+        auto query = [&](const Eigen::Vector3i& key, RayVoxelGrid::Cell* cell) {
+          cell->flags |= kQueried[s];
           coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= kQueried[s];
         };
-        query(grid_->KeyOf(side.points[i]));
+        const Eigen::Vector3i point_key = grid_->KeyOf(side.points[i]);
+        query(point_key, grid_->Find(point_key));
         // The free column below (only for points that can become dynamic).
         if (side.common[i]) continue;
         ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
-          const RayVoxelGrid::Cell* cell = grid_->Touch(key);
+          RayVoxelGrid::Cell* cell = grid_->Touch(key);
           if (cell == nullptr || (cell->flags & kOccupied[s])) return false;
-          query(key);
+          query(key, cell);
           return true;
         });
       }
@@ -614,21 +615,17 @@ class PairDetection {
         // fifth of the ray (grazing their own surface near the point), and stop early. An own
         // voxel blocks when the ray enters it (coming from the origin) beyond the clearance,
         // that is where the backward walk leaves it; the voxel of the origin never blocks.
-        // Blocks without an own occupied or a queried voxel can neither block nor count.
         const Eigen::Vector3d end = o + (p - o) * (free_until / length);
         bool previous_own = false;
-        grid_->Traverse(
-            end, o,
-            [&](RayVoxelGrid::Cell* cell, double back_m) {
-              if (previous_own && free_until - back_m > origin_clearance_m) {
-                blocked = true;
-                return false;
-              }
-              previous_own = cell != nullptr && (cell->flags & own);
-              if (cell != nullptr && (cell->flags & query)) passed.push_back(cell);
-              return true;
-            },
-            static_cast<std::uint8_t>(own | query));
+        grid_->Traverse(end, o, [&](RayVoxelGrid::Cell* cell, double back_m) {
+          if (previous_own && free_until - back_m > origin_clearance_m) {
+            blocked = true;
+            return false;
+          }
+          previous_own = cell != nullptr && (cell->flags & own);
+          if (cell != nullptr && (cell->flags & query)) passed.push_back(cell);
+          return true;
+        });
         if (blocked) continue;
         for (RayVoxelGrid::Cell* cell : passed) {
           if (cell->count[s] < 255) ++cell->count[s];

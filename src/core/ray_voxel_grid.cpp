@@ -62,15 +62,6 @@ RayVoxelGrid::Cell* RayVoxelGrid::Touch(const Eigen::Vector3i& key) {
   return &blocks_[static_cast<std::size_t>(block)].cells[CellSlot(key)];
 }
 
-RayVoxelGrid::Cell* RayVoxelGrid::Mark(const Eigen::Vector3i& key, std::uint8_t flags) {
-  Cell* cell = Touch(key);
-  if (cell == nullptr) return nullptr;
-  cell->flags |= flags;
-  blocks_[static_cast<std::size_t>(block_index_[static_cast<std::size_t>(BlockSlot(key))])]
-      .summary |= flags;
-  return cell;
-}
-
 RayVoxelGrid::Cell* RayVoxelGrid::Find(const Eigen::Vector3i& key) {
   if (!ContainsKey(key)) return nullptr;
   const std::int32_t block = block_index_[static_cast<std::size_t>(BlockSlot(key))];

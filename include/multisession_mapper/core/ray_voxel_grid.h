@@ -45,11 +45,8 @@ class RayVoxelGrid {
   Eigen::Vector3d CentreOf(const Eigen::Vector3i& key) const;
   bool ContainsKey(const Eigen::Vector3i& key) const;
   /// The cell, allocating its block when absent; null outside the grid. Allocation may move
-  /// the blocks: cell pointers are valid until the next Touch() or Mark().
+  /// the blocks: cell pointers are valid until the next Touch().
   Cell* Touch(const Eigen::Vector3i& key);
-  /// Touch(), then sets `flags` on the cell and in its block's summary (the union of the
-  /// flags set by Mark() on the block's cells, which Traverse() can skip blocks by).
-  Cell* Mark(const Eigen::Vector3i& key, std::uint8_t flags);
   /// The cell or null when its block was never touched or it lies outside the grid.
   Cell* Find(const Eigen::Vector3i& key);
   const Cell* Find(const Eigen::Vector3i& key) const;
@@ -59,11 +56,8 @@ class RayVoxelGrid {
   /// `entry_distance_m` is the distance from `from` at which the segment enters the voxel.
   /// A stretch through a block that was never touched is visited once, with a null cell and
   /// the distance at which it enters that block (empty space costs one visit per block).
-  /// With `block_flags` != 0, a block none of whose cells got any of these flags by Mark() is
-  /// treated the same way: a caller that only reacts to cells with those flags skips it whole.
   template <typename Visit>
-  void Traverse(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Visit&& visit,
-                std::uint8_t block_flags = 0);
+  void Traverse(const Eigen::Vector3d& from, const Eigen::Vector3d& to, Visit&& visit);
 
   double voxel_size_m() const { return voxel_size_m_; }
   std::size_t num_blocks() const { return blocks_.size(); }
@@ -74,7 +68,6 @@ class RayVoxelGrid {
   static constexpr int kBlockMask = kBlockEdge - 1;
   struct Block {
     Cell cells[kBlockEdge * kBlockEdge * kBlockEdge];
-    std::uint8_t summary = 0;  // union of the flags set by Mark() in this block
   };
 
   RayVoxelGrid() = default;
@@ -98,7 +91,7 @@ class RayVoxelGrid {
 
 template <typename Visit>
 void RayVoxelGrid::Traverse(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
-                            Visit&& visit, std::uint8_t block_flags) {
+                            Visit&& visit) {
   const Eigen::Vector3d a = (from - origin_) * inv_voxel_size_;  // grid units
   const Eigen::Vector3d d = (to - origin_) * inv_voxel_size_ - a;
   // Clip the segment to the grid box [0, dims] (slab test); t is the fraction of the segment.
@@ -139,9 +132,8 @@ void RayVoxelGrid::Traverse(const Eigen::Vector3d& from, const Eigen::Vector3d& 
   double t_entry = t0;
   while (true) {
     const std::int32_t block = block_index_[static_cast<std::size_t>(BlockSlot(key))];
-    if (block < 0 || (block_flags != 0 &&
-                      (blocks_[static_cast<std::size_t>(block)].summary & block_flags) == 0)) {
-      // Empty (or skipped) block: one visit, then jump to where the segment leaves the block.
+    if (block < 0) {
+      // Empty block: one visit, then jump to where the segment leaves the block.
       if (!visit(static_cast<Cell*>(nullptr), t_entry * to_metres)) return;
       double t_exit = 2.0;
       for (int i = 0; i < 3; ++i) {
