@@ -431,13 +431,12 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   auto pose_of_current = [&](std::size_t c) { return graph.NodePose(current_node(c)); };
   // The pairs of one current submap share its neighbour index (built once, in its own frame,
   // which is the frame of the detection).
-  std::map<std::size_t, std::vector<std::size_t>> pairs_of_current;
+  std::vector<std::vector<std::size_t>> pairs_of_current(session.submaps.size());
   for (std::size_t i = 0; i < pairs.size(); ++i) pairs_of_current[pairs[i].current].push_back(i);
-  std::vector<std::vector<std::size_t>> groups;
-  for (auto& entry : pairs_of_current) groups.push_back(std::move(entry.second));
-  ParallelFor(groups.size(), config_.num_threads, [&](std::size_t g) {
-    const std::vector<std::size_t>& members = groups[g];
-    const Submap& cs = session.submaps[pairs[members.front()].current];
+  ParallelFor(session.submaps.size(), config_.num_threads, [&](std::size_t c) {
+    const std::vector<std::size_t>& members = pairs_of_current[c];
+    if (members.empty()) return;
+    const Submap& cs = session.submaps[c];
     const auto index_start = std::chrono::steady_clock::now();
     StatusOr<PointIndex> index = PointIndex::Create(cs.points);
     // Each pair's time includes its share of the index.
