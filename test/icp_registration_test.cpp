@@ -3,6 +3,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <random>
 #include <string>
 #include <sys/stat.h>
 
@@ -188,6 +189,53 @@ TEST(IcpRegistrationTest, FailsClearlyWithoutOverlapOrTarget) {
   IcpConfig bad;
   bad.max_iterations = 0;
   EXPECT_FALSE(IcpRegistration::Create(bad).ok());
+}
+
+// A corridor: ground and two long parallel walls along x, sampled at random. The pairs fix
+// y, z, roll, pitch and yaw but say nothing about x.
+PointVector Corridor() {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> along(-30.0, 30.0), across(-2.9, 2.9), up(0.1, 3.0);
+  PointVector points;
+  for (int i = 0; i < 20000; ++i) {
+    switch (i % 3) {
+      case 0: points.emplace_back(along(rng), across(rng), 0.0); break;
+      case 1: points.emplace_back(along(rng), -3.0, up(rng)); break;
+      default: points.emplace_back(along(rng), 3.0, up(rng)); break;
+    }
+  }
+  return points;
+}
+
+// The translation prior holds the direction the pairs do not constrain at the prior's value,
+// while the constrained ones follow the pairs (a weight of 20 pairs against hundreds).
+TEST(IcpRegistrationTest, TranslationPriorHoldsOnlyTheUnconstrainedDirection) {
+  const PointVector corridor = Corridor();
+  const KdTreeTarget target = KdTreeTarget::Create(corridor).value();
+  PointVector source;  // away from the corridor's ends
+  for (const Eigen::Vector3d& p : VoxelDownsample(corridor, 0.5)) {
+    if (std::abs(p.x()) < 20.0) source.push_back(p);
+  }
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  const Pose3 guess = se3::FromXyzRpy(0.3, 0.2, -0.1, 0.0, 0.0, 1.0 * kDeg);
+  IcpTranslationPrior prior;
+  prior.translation = Eigen::Vector3d(0.1, 0.15, 0.05);
+  prior.weight = 20.0;
+  const StatusOr<IcpResult> with = icp.Register(source, target, guess, 1.0, 0.3, prior);
+  ASSERT_TRUE(with.ok()) << with.status().message();
+  const Eigen::Vector3d t = with.value().pose.translation();
+  EXPECT_NEAR(t.x(), 0.1, 5e-3);   // the prior's
+  EXPECT_NEAR(t.y(), 0.0, 0.01);   // the walls'
+  EXPECT_NEAR(t.z(), 0.0, 0.01);   // the ground's
+  EXPECT_LT(se3::RotationAngleRad(with.value().pose), 0.2 * kDeg);
+  // The Hessian reported is the pairs' own: little along x (some from the edges' normals).
+  EXPECT_LT(with.value().hessian(0, 0), 0.01 * with.value().hessian(1, 1));
+
+  IcpTranslationPrior bad = prior;
+  bad.weight = -1.0;
+  const StatusOr<IcpResult> refused = icp.Register(source, target, guess, 1.0, 0.3, bad);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("prior"), std::string::npos);
 }
 
 // --- Real data: two outdoor scans from koide3/fast_gicp (see ../shared/data/real/README.md).

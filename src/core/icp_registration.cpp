@@ -91,9 +91,10 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const RegistrationTarget& target,
                                               const Pose3& initial_guess,
                                               double max_correspondence_distance_m,
-                                              double kernel_scale_m) const {
+                                              double kernel_scale_m,
+                                              const IcpTranslationPrior& prior) const {
   return RegisterImpl(source, nullptr, target, initial_guess, max_correspondence_distance_m,
-                      kernel_scale_m);
+                      kernel_scale_m, prior);
 }
 
 StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
@@ -101,13 +102,14 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const RegistrationTarget& target,
                                               const Pose3& initial_guess,
                                               double max_correspondence_distance_m,
-                                              double kernel_scale_m) const {
+                                              double kernel_scale_m,
+                                              const IcpTranslationPrior& prior) const {
   if (source_normals.size() != source.size()) {
     return Status::Error("icp: " + std::to_string(source_normals.size()) + " normals for " +
                          std::to_string(source.size()) + " source points");
   }
   return RegisterImpl(source, &source_normals, target, initial_guess,
-                      max_correspondence_distance_m, kernel_scale_m);
+                      max_correspondence_distance_m, kernel_scale_m, prior);
 }
 
 StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
@@ -115,8 +117,12 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
                                                   const RegistrationTarget& target,
                                                   const Pose3& initial_guess,
                                                   double max_correspondence_distance_m,
-                                                  double kernel_scale_m) const {
+                                                  double kernel_scale_m,
+                                                  const IcpTranslationPrior& prior) const {
   if (target.empty()) return Status::Error("icp: the target is empty");
+  if (!(prior.weight >= 0.0) || !std::isfinite(prior.weight) || !prior.translation.allFinite()) {
+    return Status::Error("icp: the translation prior needs a finite position and weight >= 0");
+  }
   if (source.size() < static_cast<std::size_t>(config_.min_correspondences)) {
     return Status::Error("icp: only " + std::to_string(source.size()) +
                          " source points, need at least " +
@@ -214,7 +220,13 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     result.iterations = iteration;
     result.num_inliers = inliers;
     result.rmse_m = inliers > 0 ? std::sqrt(sum_dist_sq / static_cast<double>(inliers)) : 0.0;
-    result.hessian = H;
+    result.hessian = H;  // the pairs' information only, without the prior
+    if (prior.weight > 0.0) {
+      // d/d(dt) of weight * |t + dt - prior|^2 / 2 at dt = 0; the rotation about the source
+      // origin leaves t where it is.
+      H.topLeftCorner<3, 3>().diagonal().array() += prior.weight;
+      g.head<3>() += prior.weight * (pose.translation() - prior.translation);
+    }
     if (pairs < static_cast<std::size_t>(config_.min_correspondences)) {
       return Status::Error("icp: only " + std::to_string(pairs) +
                            " correspondences within " +

@@ -54,6 +54,10 @@ Status OdometryConfig::Validate() const {
     return Status::Error(
         "odometry.refine_min_translation_m / refine_min_rotation_rad must be >= 0");
   }
+  if (!std::isfinite(motion_prior_weight) || motion_prior_weight < 0.0) {
+    return Status::Error("odometry.motion_prior_weight must be >= 0, got " +
+                         std::to_string(motion_prior_weight));
+  }
   if (velocity_window_scans < 1) {
     return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
                          std::to_string(velocity_window_scans));
@@ -134,13 +138,17 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     }
     result.timing.downsample_ms += prepare_watch.Lap();
   };
+  // The motion model's position as a prior where the pairs constrain little (see the config).
+  IcpTranslationPrior prior;
+  prior.translation = result.prediction.translation();
+  prior.weight = continuous ? config_.motion_prior_weight : 0.0;
   const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m) {
     if (source_normals.empty()) {
-      return icp_.Register(source, local_map_, guess, max_distance_m, kernel_m);
+      return icp_.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
     }
     local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
-    StatusOr<IcpResult> icp =
-        icp_.Register(source, source_normals, local_map_, guess, max_distance_m, kernel_m);
+    StatusOr<IcpResult> icp = icp_.Register(source, source_normals, local_map_, guess,
+                                            max_distance_m, kernel_m, prior);
     local_map_.SetNormalsEnabled(true);
     return icp;
   };

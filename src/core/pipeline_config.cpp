@@ -38,6 +38,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "use_scan_normals", &s.odometry.use_scan_normals},
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},
       {"odometry", "kernel_sigma_factor", &s.odometry.kernel_sigma_factor},
+      {"odometry", "motion_prior_weight", &s.odometry.motion_prior_weight},
       {"odometry", "icp_max_iterations", &s.odometry.icp.max_iterations},
       {"odometry", "icp_convergence_translation_m", &s.odometry.icp.convergence_translation_m},
       {"odometry", "icp_convergence_rotation_rad", &s.odometry.icp.convergence_rotation_rad},

@@ -13,7 +13,8 @@ namespace ros_params {
   F(input_filter_max_range_m, o.input_filter.max_range_m)                    \
   F(odometry_map_voxel_size_m, o.map_voxel_size_m)                           \
   F(odometry_registration_voxel_size_m, o.registration_voxel_size_m)         \
-  F(odometry_max_scan_gap_s, o.max_scan_gap_s)
+  F(odometry_max_scan_gap_s, o.max_scan_gap_s)                               \
+  F(odometry_motion_prior_weight, o.motion_prior_weight)
 
 #define MSM_SUBMAP_MANAGER_FIELDS(F)                                                        \
   F(submap_max_translation_m, s.submaps.max_translation_m)                                  \

@@ -77,6 +77,18 @@ struct IcpConfig {
   Status Validate() const;
 };
 
+/// A Gaussian prior on the translation of the result, e.g. the odometry's motion-model
+/// prediction: adds weight * |t - prior.translation|^2 to the least squares (rotation free).
+/// `weight` is in the Hessian's units (weighted pairs per unit residual, see IcpResult::
+/// hessian): a direction that the pairs constrain with an eigenvalue well above it follows
+/// the pairs, one constrained much less (a straight road between parallel walls, along the
+/// road) keeps the prior's value. Degeneracy-aware estimation after Zhang, Kaess & Singh (ICRA
+/// 2016), as a soft prior instead of their hard projection.
+struct IcpTranslationPrior {
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();  ///< target frame [m]
+  double weight = 0.0;                                    ///< 0: no prior
+};
+
 struct IcpResult {
   Pose3 pose = Pose3::Identity();  ///< T_target_source: maps source points into the target
   int iterations = 0;
@@ -108,7 +120,8 @@ class IcpRegistration {
   /// threshold).
   StatusOr<IcpResult> Register(const PointVector& source, const RegistrationTarget& target,
                                const Pose3& initial_guess, double max_correspondence_distance_m,
-                               double kernel_scale_m) const;
+                               double kernel_scale_m,
+                               const IcpTranslationPrior& prior = IcpTranslationPrior()) const;
 
   /// Same, with a normal per source point (source frame; zero = unknown), e.g. from
   /// EstimateScanNormals: each pair's plane is the source point's normal, the target's
@@ -120,7 +133,8 @@ class IcpRegistration {
   /// simulator's sessions). Normals spanning two rings of the source scan are the surface's.
   StatusOr<IcpResult> Register(const PointVector& source, const PointVector& source_normals,
                                const RegistrationTarget& target, const Pose3& initial_guess,
-                               double max_correspondence_distance_m, double kernel_scale_m) const;
+                               double max_correspondence_distance_m, double kernel_scale_m,
+                               const IcpTranslationPrior& prior = IcpTranslationPrior()) const;
 
   const IcpConfig& config() const { return config_; }
 
@@ -129,7 +143,7 @@ class IcpRegistration {
   StatusOr<IcpResult> RegisterImpl(const PointVector& source, const PointVector* source_normals,
                                    const RegistrationTarget& target, const Pose3& initial_guess,
                                    double max_correspondence_distance_m,
-                                   double kernel_scale_m) const;
+                                   double kernel_scale_m, const IcpTranslationPrior& prior) const;
   IcpConfig config_;
   /// The search threads (null with search_threads 1); copies share it, and their
   /// registrations then take turns on it.
