@@ -80,6 +80,9 @@ TEST(IcpRegistrationTest, RecoversKnownTransformOnSyntheticSceneWithKdTreeTarget
   EXPECT_GT(result.value().fitness, 0.8);
   EXPECT_LT(result.value().rmse_m, 0.3);
   EXPECT_GT(result.value().hessian.trace(), 0.0);
+  // Most of the source fits within the kernel's scale at the solution.
+  EXPECT_GT(result.value().mean_weight, 0.5);
+  EXPECT_LE(result.value().mean_weight, 1.0);
 }
 
 // The update rotates about the source origin, not the target origin: the same registration

@@ -95,6 +95,25 @@ TEST(OdometryTest, KeepsTrackInSharpTurns) {
   EXPECT_LT(e.final_translation_m, 0.15);
 }
 
+// Turns whose yaw rate steps from 0 to 0.4 rad/s and back within one scan (as the campus
+// simulator drives): the prediction and its de-skew are a whole step (2.3 deg) off there.
+TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
+  const test::VehicleTrajectory steps(1.8, {{2.0, 0.0}, {2.5, 0.4}, {2.0, 0.0}, {2.5, -0.4}, {2.0, 0.0}},
+                                      1e9, 0.25);
+  const SequenceErrors without = RunSequence(steps, true);
+  OdometryConfig config;
+  config.turn_hypothesis_step_rad_s = 0.4;
+  const SequenceErrors with = RunSequence(steps, true, config);
+  std::cout << "yaw-rate steps: max error without hypotheses " << without.max_translation_m
+            << " m, " << without.max_rotation_rad / kDeg << " deg; with "
+            << with.max_translation_m << " m, " << with.max_rotation_rad / kDeg << " deg"
+            << std::endl;
+  // Measured 0.099 m / 0.61 deg without, 0.045 m / 0.28 deg with.
+  EXPECT_LT(with.max_translation_m, 0.07);
+  EXPECT_LT(with.max_rotation_rad, 0.4 * kDeg);
+  EXPECT_LT(with.max_rotation_rad, 0.7 * without.max_rotation_rad);
+}
+
 TEST(OdometryTest, TracksWithoutPerPointTime) {
   // No time field: no de-skewing; the skew costs accuracy but tracking holds.
   const SequenceErrors e = RunSequence(GentleTurns(), false);

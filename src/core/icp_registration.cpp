@@ -180,6 +180,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     const std::size_t inliers = pairs_found.size();
     std::size_t pairs = 0;  // inliers that entered the least squares
     double sum_dist_sq = 0.0;
+    double sum_weight = 0.0;
     // Rotation about the source origin's current position, not the target origin: far from
     // the target origin (a robot 300 m into its map) a rotation about the target origin is
     // mostly a translation, the two are coupled, and the convergence thresholds mean nothing.
@@ -205,6 +206,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
         J.head<3>() = m.normal;
         J.tail<3>() = (p - center).cross(m.normal);
         const double w = KernelWeight(kernel, scale_sq, r * r);
+        sum_weight += w;
         H.selfadjointView<Eigen::Upper>().rankUpdate(J, w);  // upper triangle only
         g.noalias() += (w * r) * J;
       } else {
@@ -212,6 +214,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
         J.leftCols<3>().setIdentity();
         J.rightCols<3>() = -Skew(p - center);
         const double w = KernelWeight(kernel, scale_sq, diff.squaredNorm());
+        sum_weight += w;
         H.noalias() += w * J.transpose() * J;
         g.noalias() += w * J.transpose() * diff;
       }
@@ -220,6 +223,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     result.iterations = iteration;
     result.num_inliers = inliers;
     result.rmse_m = inliers > 0 ? std::sqrt(sum_dist_sq / static_cast<double>(inliers)) : 0.0;
+    result.mean_weight = sum_weight / static_cast<double>(source.size());
     result.hessian = H;  // the pairs' information only, without the prior
     if (prior.weight > 0.0) {
       // d/d(dt) of weight * |t + dt - prior|^2 / 2 at dt = 0; the rotation about the source

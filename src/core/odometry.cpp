@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "multisession_mapper/core/voxel_downsample.h"
 
@@ -57,6 +58,11 @@ Status OdometryConfig::Validate() const {
   if (!std::isfinite(motion_prior_weight) || motion_prior_weight < 0.0) {
     return Status::Error("odometry.motion_prior_weight must be >= 0, got " +
                          std::to_string(motion_prior_weight));
+  }
+  if (!std::isfinite(turn_hypothesis_step_rad_s) || turn_hypothesis_step_rad_s < 0.0 ||
+      !std::isfinite(turn_hypothesis_margin) || turn_hypothesis_margin < 1.0) {
+    return Status::Error(
+        "odometry.turn_hypothesis_step_rad_s must be >= 0 and turn_hypothesis_margin >= 1");
   }
   if (velocity_window_scans < 1) {
     return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
@@ -195,6 +201,45 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       result.refined = true;
       result.timing.registration_ms += watch.Lap();
     }
+  }
+
+  if (result.registered && continuous && dt > 0.0 && config_.turn_hypothesis_step_rad_s > 0.0) {
+    // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
+    // one scan leaves the prediction (and its de-skew) a whole step off.
+    const double step = config_.turn_hypothesis_step_rad_s;
+    const double predicted_rate = velocity(5);
+    std::vector<double> rates = {predicted_rate - step, predicted_rate + step};
+    if (std::abs(predicted_rate) > 0.5 * step) rates.push_back(0.0);
+    struct Best {
+      double score;
+      Pose3 pose;
+      IcpResult icp;
+      LidarScan deskewed;
+      PointVector map_points;
+      se3::Vector6d velocity;
+      bool changed = false;
+    };
+    Best best{result.icp.mean_weight * config_.turn_hypothesis_margin, estimate, result.icp,
+              result.deskewed_scan, result.map_points, estimated_velocity};
+    for (double rate : rates) {
+      se3::Vector6d v = velocity;
+      v(5) = rate;
+      const Pose3 guess = se3::Normalized(pose_ * se3::Exp(v * dt));
+      prepare(v);
+      StatusOr<IcpResult> h = register_scan(guess, max_distance_m, kernel_m);
+      if (!h.ok() || !(h.value().mean_weight > best.score)) continue;
+      best = Best{h.value().mean_weight, h.value().pose, h.value(), result.deskewed_scan,
+                  result.map_points, WindowVelocity(h.value().pose, scan.stamp_s), true};
+    }
+    // Leave the chosen hypothesis' scan behind (prepare overwrote it).
+    result.deskewed_scan = std::move(best.deskewed);
+    result.map_points = std::move(best.map_points);
+    if (best.changed) {
+      estimate = best.pose;
+      result.icp = best.icp;
+      estimated_velocity = best.velocity;
+    }
+    result.timing.registration_ms += watch.Lap();
   }
 
   if (result.registered) {

@@ -39,6 +39,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},
       {"odometry", "kernel_sigma_factor", &s.odometry.kernel_sigma_factor},
       {"odometry", "motion_prior_weight", &s.odometry.motion_prior_weight},
+      {"odometry", "turn_hypothesis_step_rad_s", &s.odometry.turn_hypothesis_step_rad_s},
+      {"odometry", "turn_hypothesis_margin", &s.odometry.turn_hypothesis_margin},
       {"odometry", "icp_max_iterations", &s.odometry.icp.max_iterations},
       {"odometry", "icp_convergence_translation_m", &s.odometry.icp.convergence_translation_m},
       {"odometry", "icp_convergence_rotation_rad", &s.odometry.icp.convergence_rotation_rad},

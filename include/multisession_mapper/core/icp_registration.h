@@ -98,6 +98,10 @@ struct IcpResult {
   std::size_t num_inliers = 0;     ///< source points with a target point within max distance
   double fitness = 0.0;            ///< num_inliers / num_source, in [0, 1]
   double rmse_m = 0.0;             ///< RMS point-to-point distance of the inliers [m]
+  /// Mean robust-kernel weight over all source points at the last iteration, in [0, 1]: the
+  /// fraction of the source that fits within about the kernel's scale (0 without a kernel
+  /// pair).
+  double mean_weight = 0.0;
   /// Gauss-Newton Hessian J^T W J at the solution (translation first, then rotation about
   /// the source origin, see the update above), in units of 1/residual^2; scale by 1/sigma^2
   /// of the point noise for an information matrix.

@@ -109,6 +109,23 @@ struct OdometryConfig {
   /// 1 + 1 wrong submaps, 18 overlapping submaps of s01 missed). For data with long
   /// featureless corridors and smooth motion (no yaw-rate steps) try 20-30.
   double motion_prior_weight = 0.0;
+  /// > 0: after the registration, also try yaw rates of the predicted one -/+ this [rad/s]
+  /// (and 0 in a turn), each with the scan de-skewed at its own rate and registered from its
+  /// own prediction; a hypothesis replaces the registration when its mean kernel weight
+  /// (IcpResult::mean_weight) exceeds the registration's by the factor
+  /// `turn_hypothesis_margin`. 0: off. For yaw rates that step within one scan (the campus
+  /// simulator starts and ends its turns so): the prediction and its de-skew are then a
+  /// whole step off, and an ICP hypothesis compared on the wrongly de-skewed scan loses
+  /// (issue 6). Off by default, by measurement (session 21, 0.4 rad/s, every scan): it
+  /// removes the slide behind seed 2's wrong submaps (s01 scans 4500-4560: 0.88 m -> 0.01 m)
+  /// and seed 2's 3-session pipeline has 0 + 0 wrong submaps (was 0 + 2), rigidly aligned
+  /// ATE 0.07 / 0.07 / 0.05 m (0.07 / 0.12 / 0.09); seed 1 s02 odometry alone 5.13 -> 1.27 m
+  /// aligned. But seed 1 gets 1 + 0 wrong (0 + 0), the first submap of seed 2 ends up 1 deg
+  /// tilted (the frame anchor refuses so large a correction; map-frame ATE 0.82 / 0.76 /
+  /// 0.90 m, static SA 81 -> 57 %), and the odometry costs 2-3x the time (two more de-skews
+  /// and registrations per scan).
+  double turn_hypothesis_step_rad_s = 0.0;
+  double turn_hypothesis_margin = 1.02;
   double refine_min_translation_m = 0.02;
   double refine_min_rotation_rad = 0.004;
 
