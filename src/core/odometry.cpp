@@ -219,8 +219,9 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       se3::Vector6d velocity;
       bool changed = false;
     };
+    // The registration's scan and points move into `best`; prepare() refills result's.
     Best best{result.icp.mean_weight * config_.turn_hypothesis_margin, estimate, result.icp,
-              result.deskewed_scan, result.map_points, estimated_velocity};
+              std::move(result.deskewed_scan), std::move(result.map_points), estimated_velocity};
     for (double rate : rates) {
       se3::Vector6d v = velocity;
       v(5) = rate;
@@ -228,8 +229,9 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       prepare(v);
       StatusOr<IcpResult> h = register_scan(guess, max_distance_m, kernel_m);
       if (!h.ok() || !(h.value().mean_weight > best.score)) continue;
-      best = Best{h.value().mean_weight, h.value().pose, h.value(), result.deskewed_scan,
-                  result.map_points, WindowVelocity(h.value().pose, scan.stamp_s), true};
+      best = Best{h.value().mean_weight, h.value().pose, h.value(),
+                  std::move(result.deskewed_scan), std::move(result.map_points),
+                  WindowVelocity(h.value().pose, scan.stamp_s), true};
     }
     // Leave the chosen hypothesis' scan behind (prepare overwrote it).
     result.deskewed_scan = std::move(best.deskewed);
