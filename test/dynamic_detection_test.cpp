@@ -322,6 +322,42 @@ TEST(DynamicDetectionTest, CarThatArrivedIsDynamicInTheCurrentSubmap) {
   for (std::uint32_t i : result.current_mending) EXPECT_NE(current.labels[i], kCar);
 }
 
+// A car that left, seen by the current session only from 29-31 m (it drives at x = -22): beyond
+// max_range_m (25 m) it is not examined; with the far band (far_range_m) it is, and as it has a
+// movable object's shape it is removed, with nothing else.
+TEST(DynamicDetectionTest, FarCarThatLeftIsDynamicWithTheFarBand) {
+  const SessionData history = MakeSession(Scene{true}, 0.0, 41, HistoryFrame());
+  const SessionData current = MakeSession(Scene{false}, -22.0, 42, Pose3::Identity());
+  const int car_points = CountLabel(history.labels, kCar);
+  ASSERT_GT(car_points, 100);
+  DynamicDetectionConfig near_only;
+  near_only.far_range_m = 0.0;
+  ASSERT_LT(near_only.max_range_m, 29.0);
+  const DynamicDetectionResult without = RunDetector(history, current, near_only);
+  DynamicDetectionConfig far = near_only;
+  far.far_range_m = 40.0;
+  const DynamicDetectionResult with = RunDetector(history, current, far);
+  const int found_without = CountLabel(history.labels, without.history_dynamic, kCar, true);
+  const int found_with = CountLabel(history.labels, with.history_dynamic, kCar, true);
+  const int false_with = CountLabel(history.labels, with.history_dynamic, kCar, false);
+  std::printf("far car %d/%d found without the far band, %d with it; %d other history and %zu "
+              "current points dynamic, %zu mended\n",
+              found_without, car_points, found_with, false_with, with.current_dynamic.size(),
+              with.current_mending.size());
+  EXPECT_EQ(found_without, 0);
+  EXPECT_GE(found_with, 0.8 * car_points);
+  EXPECT_LE(false_with, 3);
+  EXPECT_LE(with.current_dynamic.size(), 3u);
+  // The far band is never mending material: the mended points are those of the near band.
+  EXPECT_EQ(with.current_mending, without.current_mending);
+  // A far detection must have a movable object's shape: with a largest extent shorter than
+  // the car the same detection is refused.
+  DynamicDetectionConfig small_objects = far;
+  small_objects.changed_max_extent_m = 1.0;
+  const DynamicDetectionResult refused = RunDetector(history, current, small_objects);
+  EXPECT_EQ(CountLabel(history.labels, refused.history_dynamic, kCar, true), 0);
+}
+
 // A parking place taken by another car in the current session: 0.3 m shorter, 0.4 m further
 // along the street, 0.15 m taller, 0.1 m further from the road. Neither session sees through
 // the other's car and their road-side faces are 0.1 m apart (common by d_beta), so the
@@ -602,6 +638,11 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.max_object_bottom_m = -0.5;
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config = DynamicDetectionConfig();
+  config.far_range_m = -1.0;
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config.far_range_m = std::nan("");
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
 
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());

@@ -26,6 +26,8 @@ constexpr int kCurrent = 1;
 // Voxel flags: occupied by a session's points; queried for the other session's passing rays.
 constexpr std::uint8_t kOccupied[2] = {1, 2};
 constexpr std::uint8_t kQueried[2] = {4, 8};
+// ... queried by a point of the far band (beyond max_range_m of the other session).
+constexpr std::uint8_t kQueriedFar[2] = {16, 32};
 
 Status CheckPositive(const std::string& name, double value) {
   if (!std::isfinite(value) || value <= 0.0) {
@@ -40,6 +42,7 @@ struct Side {
   PointVector points;
   PointVector origins;  // thinned sensor origins
   std::vector<std::uint8_t> common;
+  std::vector<std::uint8_t> far;  // beyond max_range_m of the other session (the far band)
   std::vector<float> nearest_other_m;  // distance to the nearest point of the other submap
   std::vector<float> height_m;         // above the local ground
   // Lazily computed normals: 0 unknown, 1 planar, 2 none.
@@ -138,19 +141,27 @@ class PairDetection {
       const PointIndex& other = *indices_[1 - s];
       const std::size_t n = side.points.size();
       side.common.assign(n, 0);
+      side.far.assign(n, 0);
       side.nearest_other_m.assign(n, std::numeric_limits<float>::infinity());
       side.normal_state.assign(n, 0);
       side.normals.assign(n, Eigen::Vector3f::Zero());
       // Distances beyond this are only compared against smaller thresholds: stay "far".
       const double reach = std::max(config_.seed_distance_m, config_.mending_distance_m);
       // Points out of the other session's range are not examined: marked common (never
-      // dynamic, no queries) and close to the other (never mended).
+      // dynamic, no queries) and close to the other (never mended). Points of the far band
+      // are examined, under the conditions of DetectDynamic and Mending.
       const double range_sq = config_.max_range_m * config_.max_range_m;
+      const double outer = ExaminedRange();
       for (std::size_t i = 0; i < n; ++i) {
         if (!NearAny(sides_[1 - s].origins, side.points[i], range_sq)) {
-          side.common[i] = 1;
-          side.nearest_other_m[i] = 0.0f;
-          continue;
+          if (outer > config_.max_range_m &&
+              NearAny(sides_[1 - s].origins, side.points[i], outer * outer)) {
+            side.far[i] = 1;
+          } else {
+            side.common[i] = 1;
+            side.nearest_other_m[i] = 0.0f;
+            continue;
+          }
         }
         std::uint32_t j = 0;
         double d2 = 0.0;
@@ -220,9 +231,17 @@ class PairDetection {
             (side.common[i] && side.nearest_other_m[i] <= config_.mending_distance_m)) {
           continue;
         }
+        // A point of the far band above the height guard is never a seed, never mended and
+        // never compared (changed_compare_range_m): its passes are not needed.
+        if (side.far[i] && config_.height_guard_enabled &&
+            side.height_m[i] > config_.height_guard_m) {
+          continue;
+        }
         auto query = [&](const Eigen::Vector3i& key, RayVoxelGrid::Cell* cell) {
           cell->flags |= kQueried[s];
-          coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= kQueried[s];
+          const std::uint8_t flags = kQueried[s] | (side.far[i] ? kQueriedFar[s] : 0);
+          cell->flags |= flags;
+          coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= flags;
         };
         const Eigen::Vector3i point_key = grid_->KeyOf(side.points[i]);
         query(point_key, grid_->Find(point_key));
@@ -296,7 +315,8 @@ class PairDetection {
       const bool grounded =
           config_.max_object_bottom_m == 0.0 || bottom_m <= config_.max_object_bottom_m;
       if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
-          coarse >= config_.min_cluster_coarse_points && grounded) {
+          coarse >= config_.min_cluster_coarse_points && grounded &&
+          (!TouchesFarBand(side, cluster) || MovableShape(s, cluster))) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
         if (config_.bottom_extension_radius_m > 0.0) ExtendDown(s, cluster, &visited, &dynamic);
       }
@@ -353,7 +373,9 @@ class PairDetection {
     for (std::uint32_t i : current_dynamic) dynamic[i] = 1;
     std::vector<std::uint32_t> mending;
     for (std::size_t i = 0; i < side.points.size(); ++i) {
-      if (dynamic[i] || side.nearest_other_m[i] <= config_.mending_distance_m) continue;
+      if (dynamic[i] || side.far[i] || side.nearest_other_m[i] <= config_.mending_distance_m) {
+        continue;
+      }
       const RayVoxelGrid::Cell* cell = grid_->Find(grid_->KeyOf(side.points[i]));
       if (cell != nullptr && cell->count[kHistory] >= config_.min_passing_rays) continue;
       mending.push_back(static_cast<std::uint32_t>(i));
@@ -414,6 +436,14 @@ class PairDetection {
             std::vector<std::uint32_t>* cluster) const {
     cluster->clear();
     Spread(s, {seed}, radius_m, [&](std::uint32_t, std::uint32_t j) { return take(j); }, cluster);
+  }
+
+  // How far from the other session's origins points are examined [m].
+  double ExaminedRange() const { return std::max(config_.max_range_m, config_.far_range_m); }
+
+  static bool TouchesFarBand(const Side& side, const std::vector<std::uint32_t>& cluster) {
+    return std::any_of(cluster.begin(), cluster.end(),
+                       [&](std::uint32_t i) { return side.far[i] != 0; });
   }
 
   // An object of movable size standing on the ground with mostly planar surfaces.
@@ -574,6 +604,7 @@ class PairDetection {
     const Side& side = sides_[s];
     const std::uint8_t own = kOccupied[s];
     const std::uint8_t query = kQueried[1 - s];
+    const std::uint8_t query_far = kQueriedFar[1 - s];
     const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(config_.rays_per_point),
                                                 side.origins.size());
     const double max_len_sq = config_.max_ray_length_m * config_.max_ray_length_m;
@@ -598,13 +629,15 @@ class PairDetection {
           margin = std::min(config_.max_end_margin_m,
                             config_.end_margin_m / std::max(sin_elevation, 1e-3));
         }
-        // Beyond max_range_m from the origin no voxel is examined.
-        const double free_until = std::min(length - margin, config_.max_range_m);
+        // Beyond the examined range from the origin no voxel is examined.
+        const double free_until = std::min(length - margin, ExaminedRange());
         if (free_until <= origin_clearance_m) continue;
         bool relevant = false;
         coarse_->Traverse(o, p, [&](RayVoxelGrid::Cell* cell, double entry_m) {
           if (entry_m >= free_until) return false;
-          relevant = cell != nullptr && (cell->flags & query);
+          // (a coarse cell is 8 voxels wide: it may reach back below max_range_m)
+          const bool beyond = entry_m > config_.max_range_m;
+          relevant = cell != nullptr && (cell->flags & (beyond ? query_far : query));
           return !relevant;
         });
         if (!relevant) continue;
@@ -623,7 +656,11 @@ class PairDetection {
             return false;
           }
           previous_own = cell != nullptr && (cell->flags & own);
-          if (cell != nullptr && (cell->flags & query)) passed.push_back(cell);
+          // Beyond max_range_m along the ray a pass counts only for the far band, so that
+          // the points within max_range_m get the evidence they got without it.
+          const std::uint8_t wanted =
+              free_until - back_m > config_.max_range_m ? query_far : query;
+          if (cell != nullptr && (cell->flags & wanted)) passed.push_back(cell);
           return true;
         });
         if (blocked) continue;
@@ -692,6 +729,9 @@ Status DynamicDetectionConfig::Validate() const {
   }
   if (!std::isfinite(ground_tolerance_m) || ground_tolerance_m < 0.0) {
     return Status::Error("dynamic_detection.ground_tolerance_m must be >= 0");
+  }
+  if (!std::isfinite(far_range_m) || far_range_m < 0.0) {
+    return Status::Error("dynamic_detection.far_range_m must be >= 0 (0: off)");
   }
   if (!std::isfinite(max_object_bottom_m) || max_object_bottom_m < 0.0) {
     return Status::Error("dynamic_detection.max_object_bottom_m must be >= 0 (0: off)");

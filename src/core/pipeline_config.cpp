@@ -130,6 +130,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "height_guard_m", &m.dynamics.height_guard_m},
       {"low_dynamics", "guard_object_height_m", &m.dynamics.guard_object_height_m},
       {"low_dynamics", "max_object_bottom_m", &m.dynamics.max_object_bottom_m},
+      {"low_dynamics", "far_range_m", &m.dynamics.far_range_m},
       {"low_dynamics", "bottom_extension_radius_m", &m.dynamics.bottom_extension_radius_m},
       {"low_dynamics", "bottom_min_height_m", &m.dynamics.bottom_min_height_m},
       {"low_dynamics", "bottom_max_drop_m", &m.dynamics.bottom_max_drop_m},

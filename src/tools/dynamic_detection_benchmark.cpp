@@ -65,7 +65,7 @@ const char kUsage[] =
     "  --json FILE        also write the figures as JSON\n"
     "  --set KEY=VALUE    override a detector parameter (seed_distance_m, support_radius_m,\n"
     "                     min_passing_rays, max_support_points, min_cluster_points,\n"
-    "                     min_cluster_coarse_points, max_object_bottom_m, max_range_m,\n"
+    "                     min_cluster_coarse_points, max_object_bottom_m, max_range_m, far_range_m,\n                     max_ray_length_m,\n"
     "                     end_margin_m, rays_per_point, origin_spacing_m,\n"
     "                     dynamic_grow_radius_m, mending_distance_m,\n"
     "                     free_column_depth_m, column_clearance_m, guard_object_height_m,\n"
@@ -415,6 +415,8 @@ int main(int argc, char** argv) {
       else if (key == "bottom_min_height_m") config.bottom_min_height_m = v;
       else if (key == "bottom_max_drop_m") config.bottom_max_drop_m = v;
       else if (key == "max_range_m") config.max_range_m = v;
+      else if (key == "far_range_m") config.far_range_m = v;
+      else if (key == "max_ray_length_m") config.max_ray_length_m = v;
       else if (key == "end_margin_m") config.end_margin_m = v;
       else if (key == "rays_per_point") config.rays_per_point = static_cast<int>(v);
       else if (key == "origin_spacing_m") config.origin_spacing_m = v;

@@ -92,6 +92,15 @@ struct DynamicDetectionConfig {
   /// (can be dynamic or mended) [m]: farther points are sparse, and their alignment error
   /// grows with range (0.5 deg of rotation error is 0.2 m at 25 m).
   double max_range_m = 25.0;
+  /// Far band: points between max_range_m and far_range_m of the other session's sensor
+  /// origins are examined too, but a detection holding any of them is kept only when it has
+  /// the shape of a movable object (the changed-object step's test: extent, top, bottom and
+  /// planar fraction), and they are never mended [m]. Half of the `campus` low-dynamic points
+  /// lie 20-60 m from the path of the session that saw their place empty; there the ground
+  /// is rarely measured (a VLP-16 at 1.8 m reaches flat ground only up to ~35 m) and the local
+  /// ground is the lowest point around, so a porous canopy would otherwise be "standing" on
+  /// its own lowest points. 0 (or <= max_range_m): off.
+  double far_range_m = 0.0;
   /// Free space ends this far before a ray's end point [m]; for end points on the ground it is
   /// end_margin_m / sin(ray elevation), at most max_end_margin_m [m].
   double end_margin_m = 0.3;
