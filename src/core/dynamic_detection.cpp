@@ -316,7 +316,7 @@ class PairDetection {
           config_.max_object_bottom_m == 0.0 || bottom_m <= config_.max_object_bottom_m;
       if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
           coarse >= config_.min_cluster_coarse_points && grounded &&
-          (!TouchesFarBand(side, cluster) || MovableShape(s, cluster))) {
+          (!TouchesFarBand(side, cluster) || WholeObjectIsMovable(s, cluster))) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
         if (config_.bottom_extension_radius_m > 0.0) ExtendDown(s, cluster, &visited, &dynamic);
       }
@@ -444,6 +444,45 @@ class PairDetection {
   static bool TouchesFarBand(const Side& side, const std::vector<std::uint32_t>& cluster) {
     return std::any_of(cluster.begin(), cluster.end(),
                        [&](std::uint32_t i) { return side.far[i] != 0; });
+  }
+
+  // The far band's shape test: the detection grown over every above-ground point of its
+  // submap (also the common ones and those above the guard, as the changed-object step's
+  // objects) must have a movable object's shape. A detection in the lower part of a tree
+  // crown whose ground nobody measured (its own lowest points pass for the ground) is part of
+  // a taller or wider object. Growth stops once the object is too wide or too tall.
+  bool WholeObjectIsMovable(int s, const std::vector<std::uint32_t>& detection) {
+    const Side& side = sides_[s];
+    std::vector<std::uint8_t>& taken = object_mark_[s];
+    taken.resize(side.points.size(), 0);
+    std::vector<std::uint32_t> object(detection.begin(), detection.end());
+    for (std::uint32_t i : object) taken[i] = 1;
+    Eigen::Vector2d lo = side.points[object.front()].head<2>(), hi = lo;
+    for (std::uint32_t i : object) {
+      lo = lo.cwiseMin(side.points[i].head<2>());
+      hi = hi.cwiseMax(side.points[i].head<2>());
+    }
+    const double max_extent_sq = config_.changed_max_extent_m * config_.changed_max_extent_m;
+    bool too_large = false;
+    std::vector<std::uint32_t> neighbours;
+    // Breadth-first over `object` itself (its tail is the queue); stops once too large.
+    for (std::size_t next = 0; next < object.size() && !too_large; ++next) {
+      indices_[s]->Radius(side.points[object[next]], config_.changed_grow_radius_m, &neighbours);
+      for (std::uint32_t j : neighbours) {
+        if (taken[j] || side.height_m[j] < config_.ground_tolerance_m) continue;
+        taken[j] = 1;
+        object.push_back(j);
+        lo = lo.cwiseMin(side.points[j].head<2>());
+        hi = hi.cwiseMax(side.points[j].head<2>());
+        if ((hi - lo).squaredNorm() > max_extent_sq ||
+            side.height_m[j] > config_.guard_object_height_m) {
+          too_large = true;
+          break;
+        }
+      }
+    }
+    for (std::uint32_t i : object) taken[i] = 0;
+    return !too_large && MovableShape(s, object);
   }
 
   // An object of movable size standing on the ground with mostly planar surfaces.
@@ -685,6 +724,7 @@ class PairDetection {
     bool planar = false;
   };
   VoxelMap<VoxelPlane> voxel_planes_[2];
+  std::vector<std::uint8_t> object_mark_[2];  // scratch marks of WholeObjectIsMovable
 };
 
 }  // namespace
