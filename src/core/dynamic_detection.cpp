@@ -154,7 +154,9 @@ class PairDetection {
       const double outer = ExaminedRange();
       for (std::size_t i = 0; i < n; ++i) {
         if (!NearAny(sides_[1 - s].origins, side.points[i], range_sq)) {
-          if (outer > config_.max_range_m &&
+          // In the far band, points that can never be dynamic (above the objects the height
+          // guard lets grow) stay common as out-of-range points: seeds of the common parts.
+          if (outer > config_.max_range_m && !NeverDynamic(side.height_m[i]) &&
               NearAny(sides_[1 - s].origins, side.points[i], outer * outer)) {
             side.far[i] = 1;
           } else {
@@ -273,7 +275,7 @@ class PairDetection {
       // from below it, up to guard_object_height_m (set below height_guard_m: the plain guard).
       const bool above_guard =
           config_.height_guard_enabled && side.height_m[i] > config_.height_guard_m;
-      if (above_guard && side.height_m[i] > config_.guard_object_height_m) continue;
+      if (NeverDynamic(side.height_m[i])) continue;
       // Consistency: the other session has nothing above the ground around the point.
       indices_[other]->Radius(side.points[i], config_.support_radius_m, &neighbours);
       int support = 0;
@@ -436,6 +438,12 @@ class PairDetection {
             std::vector<std::uint32_t>* cluster) const {
     cluster->clear();
     Spread(s, {seed}, radius_m, [&](std::uint32_t, std::uint32_t j) { return take(j); }, cluster);
+  }
+
+  // Above the height guard and the object height it lets grow nothing is dynamic.
+  bool NeverDynamic(float height_m) const {
+    return config_.height_guard_enabled &&
+           height_m > std::max(config_.height_guard_m, config_.guard_object_height_m);
   }
 
   // How far from the other session's origins points are examined [m].
