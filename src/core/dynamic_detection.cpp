@@ -240,7 +240,6 @@ class PairDetection {
           continue;
         }
         auto query = [&](const Eigen::Vector3i& key, RayVoxelGrid::Cell* cell) {
-          cell->flags |= kQueried[s];
           const std::uint8_t flags = kQueried[s] | (side.far[i] ? kQueriedFar[s] : 0);
           cell->flags |= flags;
           coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= flags;
