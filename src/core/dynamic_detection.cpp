@@ -415,11 +415,12 @@ class PairDetection {
   // Breadth-first spread over side s from the points in `queue` (already taken): each point
   // taken from the queue goes to `reached` (when given), and its neighbour j within radius_m
   // joins the queue when take(i, j) says so (take marks it). The region growings of all steps.
-  template <typename Take>
+  // With `stop`, the spread ends as soon as stop() says so (points still queued are left).
+  template <typename Take, typename Stop = bool (*)()>
   void Spread(int s, std::deque<std::uint32_t> queue, double radius_m, Take take,
-              std::vector<std::uint32_t>* reached) const {
+              std::vector<std::uint32_t>* reached, Stop stop = [] { return false; }) const {
     std::vector<std::uint32_t> neighbours;
-    while (!queue.empty()) {
+    while (!queue.empty() && !stop()) {
       const std::uint32_t i = queue.front();
       queue.pop_front();
       if (reached != nullptr) reached->push_back(i);
@@ -471,23 +472,21 @@ class PairDetection {
     }
     const double max_extent_sq = config_.changed_max_extent_m * config_.changed_max_extent_m;
     bool too_large = false;
-    std::vector<std::uint32_t> neighbours;
-    // Breadth-first over `object` itself (its tail is the queue); stops once too large.
-    for (std::size_t next = 0; next < object.size() && !too_large; ++next) {
-      indices_[s]->Radius(side.points[object[next]], config_.changed_grow_radius_m, &neighbours);
-      for (std::uint32_t j : neighbours) {
-        if (taken[j] || side.height_m[j] < config_.ground_tolerance_m) continue;
-        taken[j] = 1;
-        object.push_back(j);
-        lo = lo.cwiseMin(side.points[j].head<2>());
-        hi = hi.cwiseMax(side.points[j].head<2>());
-        if ((hi - lo).squaredNorm() > max_extent_sq ||
-            side.height_m[j] > config_.guard_object_height_m) {
-          too_large = true;
-          break;
-        }
-      }
-    }
+    Spread(s, std::deque<std::uint32_t>(detection.begin(), detection.end()),
+           config_.changed_grow_radius_m,
+           [&](std::uint32_t, std::uint32_t j) {
+             if (too_large || taken[j] || side.height_m[j] < config_.ground_tolerance_m) {
+               return false;
+             }
+             taken[j] = 1;
+             object.push_back(j);
+             lo = lo.cwiseMin(side.points[j].head<2>());
+             hi = hi.cwiseMax(side.points[j].head<2>());
+             too_large = (hi - lo).squaredNorm() > max_extent_sq ||
+                         side.height_m[j] > config_.guard_object_height_m;
+             return !too_large;
+           },
+           nullptr, [&] { return too_large; });
     for (std::uint32_t i : object) taken[i] = 0;
     return !too_large && MovableShape(s, object);
   }
