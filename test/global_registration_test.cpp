@@ -124,6 +124,29 @@ TEST_F(SyntheticPairTest, RecoversTheSameTransformInReverse) {
   EXPECT_LT(se3::RotationAngleRad(error), 0.3 * kDeg);
 }
 
+TEST_F(SyntheticPairTest, RegisterFromAPriorRefinesItWithoutFeatures) {
+  const GlobalRegistration registration =
+      GlobalRegistration::Create(GlobalRegistrationConfig()).value();
+  // Prepared without FPFH features: enough for the fine stage, refused without a prior.
+  const auto source = registration.Prepare(source_, false, false).value();
+  const auto target = registration.Prepare(target_, true, false).value();
+  EXPECT_FALSE(registration.Register(*source, *target).accepted);
+  // A prior 0.8 m and 1.5 deg off (a neighbouring loop's placement after some drift).
+  const Pose3 prior = truth_ * se3::FromXyzRpy(0.6, -0.5, 0.1, 0.0, 0.0, 1.5 * kDeg);
+  const GlobalRegistrationResult r = registration.RegisterFrom(*source, *target, prior);
+  ASSERT_TRUE(r.accepted) << r.reason;
+  const Pose3 error = se3::Between(truth_, r.T_target_source);
+  EXPECT_LT(se3::TranslationNorm(error), 0.05);
+  EXPECT_LT(se3::RotationAngleRad(error), 0.3 * kDeg);
+  EXPECT_GT(r.structure_overlap_ratio, registration.config().min_structure_overlap_ratio);
+  EXPECT_EQ(r.coarse_inliers, 0);
+  // The unrelated place from the same prior is refused by the same checks.
+  const auto unrelated = registration.Prepare(unrelated_, false, false).value();
+  const GlobalRegistrationResult wrong = registration.RegisterFrom(*unrelated, *target, prior);
+  EXPECT_FALSE(wrong.accepted);
+  EXPECT_FALSE(wrong.reason.empty());
+}
+
 TEST_F(SyntheticPairTest, RejectsSubmapsOfDifferentPlaces) {
   const GlobalRegistrationResult r = RegisterAndPrint("unrelated pair", unrelated_, target_);
   EXPECT_FALSE(r.accepted);

@@ -200,7 +200,7 @@ TEST_F(InterSessionMatcherTest, FindsTheRevisitedSubmapsAndTheSessionOffset) {
   const Pose3 error = se3::Between(TrueMapSession(), r.T_map_session);
   EXPECT_LT(se3::TranslationNorm(error), 0.1);
   EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg);
-  EXPECT_EQ(r.registration_s.size(),
+  EXPECT_EQ(r.registration_s.size() + r.guided_registration_s.size(),
             static_cast<std::size_t>(std::count_if(r.records.begin(), r.records.end(),
                                                    [](const LoopRecord& x) { return x.has_pose; })));
   // Every history submap of an accepted loop had its fine target built, and it is handed over
@@ -399,6 +399,84 @@ TEST_F(InterSessionMatcherTest, FusedHistorySubmapsAreSkipped) {
     }
   }
   ExpectEveryAcceptedLoopTrue(r);
+}
+
+// (current submap id, history index) of every accepted loop.
+std::set<std::pair<std::uint32_t, std::size_t>> AcceptedPairs(const InterSessionMatchResult& r) {
+  std::set<std::pair<std::uint32_t, std::size_t>> pairs;
+  for (const InterSessionLoop& loop : r.loops) pairs.insert({loop.current_submap, loop.history_index});
+  return pairs;
+}
+
+TEST_F(InterSessionMatcherTest, GuidedCandidatesFindTheSameLoopsWithFewerGlobalRegistrations) {
+  InterSessionMatcherConfig all;
+  all.guided_candidates = false;
+  const InterSessionMatchResult every =
+      InterSessionMatcher::Create(all).value().Match(data_->history, data_->current,
+                                                     *data_->recognizer).value();
+  const InterSessionMatchResult guided = InterSessionMatcher::Create(InterSessionMatcherConfig())
+                                             .value()
+                                             .Match(data_->history, data_->current,
+                                                    *data_->recognizer)
+                                             .value();
+  // The scene gives submaps with more than one candidate (else nothing is guided).
+  std::map<std::uint32_t, int> candidates;
+  for (const LoopRecord& rec : every.records) candidates[rec.current_submap] += rec.has_pose;
+  ASSERT_TRUE(std::any_of(candidates.begin(), candidates.end(),
+                          [](const auto& c) { return c.second > 1; }));
+  EXPECT_TRUE(every.guided_registration_s.empty());
+  EXPECT_FALSE(guided.guided_registration_s.empty());
+  EXPECT_LT(guided.registration_s.size(), every.registration_s.size());
+  // Every candidate is still registered one way or the other, and decided.
+  EXPECT_EQ(guided.registration_s.size() + guided.guided_registration_s.size(),
+            every.registration_s.size());
+  for (const LoopRecord& rec : guided.records) EXPECT_NE(rec.status, LoopStatus::kCandidate);
+  EXPECT_EQ(AcceptedPairs(guided), AcceptedPairs(every));
+  ExpectEveryAcceptedLoopTrue(guided);
+  ASSERT_TRUE(guided.aligned);
+  const Pose3 error = se3::Between(TrueMapSession(), guided.T_map_session);
+  EXPECT_LT(se3::TranslationNorm(error), 0.1);
+  EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg);
+}
+
+TEST_F(InterSessionMatcherTest, AGuidedCandidateThatDisagreesWithItsSubmapsLoopIsRejected) {
+  // Shift the history submap of one guided pair by 1.5 m: the fine stage still finds it (within
+  // its correction bound) but the loop implies another map <- session transform than the
+  // accepted loop that guided it.
+  const InterSessionMatchResult reference = InterSessionMatcher::Create(InterSessionMatcherConfig())
+                                                .value()
+                                                .Match(data_->history, data_->current,
+                                                       *data_->recognizer)
+                                                .value();
+  ASSERT_TRUE(reference.aligned);
+  ASSERT_GE(reference.loops.size(), 2u);
+  // Each submap's first loop comes from registration without guess; the guided ones follow.
+  std::set<std::uint32_t> seen;
+  std::size_t shifted = data_->history.submaps.size();
+  for (const InterSessionLoop& loop : reference.loops) {
+    if (!seen.insert(loop.current_submap).second) {
+      shifted = loop.history_index;
+      break;
+    }
+  }
+  ASSERT_LT(shifted, data_->history.submaps.size()) << "no submap with a guided loop";
+  MapContents history = data_->history;
+  history.submaps[shifted].T_map_submap.translation() += Eigen::Vector3d(0.0, 1.5, 0.0);
+  const InterSessionMatchResult r = InterSessionMatcher::Create(InterSessionMatcherConfig())
+                                        .value()
+                                        .Match(history, data_->current, *data_->recognizer)
+                                        .value();
+  ASSERT_TRUE(r.aligned);
+  for (const InterSessionLoop& loop : r.loops) EXPECT_NE(loop.history_index, shifted);
+  int refused = 0;
+  for (const LoopRecord& rec : r.records) {
+    if (rec.history_submap != static_cast<std::int64_t>(shifted) || !rec.has_pose) continue;
+    EXPECT_EQ(rec.status, LoopStatus::kRejected);
+    std::cout << "  cur " << rec.current_submap << " -> " << rec.history_submap << ": "
+              << rec.reason << std::endl;
+    refused += rec.reason.find("that guided it") != std::string::npos;
+  }
+  EXPECT_GE(refused, 1) << "the guided registration itself refuses the shifted submap";
 }
 
 TEST(InterSessionMatcherConfigTest, ValidatesFields) {

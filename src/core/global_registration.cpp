@@ -417,12 +417,13 @@ struct PreparedSubmap {
 };
 
 StatusOr<std::shared_ptr<const PreparedSubmap>> GlobalRegistration::Prepare(
-    const PointVector& points, bool as_target) const {
+    const PointVector& points, bool as_target, bool with_features) const {
   const auto start = Clock::now();
   if (points.empty()) return Status::Error("global registration: empty submap");
   auto prepared = std::make_shared<PreparedSubmap>();
   prepared->coarse = MakeCoarseCloud(
-      points, config_, config_.method == GlobalRegistrationConfig::Method::kFpfhRansac);
+      points, config_,
+      with_features && config_.method == GlobalRegistrationConfig::Method::kFpfhRansac);
   // The fine stage (ICP and overlap) runs on the source at its ICP voxel: the overlap ratio of
   // the downsampled source is the same fraction, at a fraction of the cost.
   prepared->fine_source = VoxelDownsample(points, config_.fine.source_voxel_m);
@@ -476,6 +477,9 @@ GlobalRegistrationResult GlobalRegistration::Register(const PreparedSubmap& sour
   };
   if (!target_submap.fine_target) return finish("target not prepared as a target");
   const bool features = config_.method == GlobalRegistrationConfig::Method::kFpfhRansac;
+  if (features && (!source_submap.coarse.features || !target_submap.coarse.features)) {
+    return finish("submap prepared without features");
+  }
   const CoarseCloud& coarse_source = source_submap.coarse;
   const CoarseCloud& coarse_target = target_submap.coarse;
   Hypotheses hypotheses;
@@ -500,41 +504,65 @@ GlobalRegistrationResult GlobalRegistration::Register(const PreparedSubmap& sour
   }
   result.coarse_time_s = SecondsSince(start);
 
-  const SubmapTarget& fine_target = *target_submap.fine_target;
-  const PointVector& fine_source = source_submap.fine_source;
   bool have = false;
   std::string first_reason;
   for (const Hypothesis& h : hypotheses) {
     // Best first; the next hypotheses are only tried when the better ones were rejected.
     if (have) break;
-    const SubmapRegistrationResult fine = fine_.Register(fine_source, fine_target, h.pose);
-    std::string reason = fine.reason;
-    double structure = 0.0;
-    if (fine.accepted) {
-      structure = StructureOverlap(coarse_source, fine_target, fine.T_target_source, config_);
-      if (structure < config_.min_structure_overlap_ratio) {
-        reason = "structure overlap " + std::to_string(structure) + " below " +
-                 std::to_string(config_.min_structure_overlap_ratio);
-      }
+    GlobalRegistrationResult attempt;
+    const std::string reason = Refine(source_submap, target_submap, h.pose, &attempt);
+    attempt.coarse_inliers = h.score;
+    if (reason.empty() || first_reason.empty()) {
+      result.T_target_source = attempt.T_target_source;
+      result.overlap_ratio = attempt.overlap_ratio;
+      result.information = attempt.information;
+      result.coarse_inliers = attempt.coarse_inliers;
+      result.structure_overlap_ratio = attempt.structure_overlap_ratio;
     }
     if (reason.empty()) {
       have = true;
       result.accepted = true;
-      result.T_target_source = fine.T_target_source;
-      result.overlap_ratio = fine.overlap_ratio;
-      result.information = fine.information;
-      result.coarse_inliers = h.score;
-      result.structure_overlap_ratio = structure;
     } else if (first_reason.empty()) {
       first_reason = reason;
-      result.T_target_source = fine.T_target_source;
-      result.overlap_ratio = fine.overlap_ratio;
-      result.coarse_inliers = h.score;
-      result.structure_overlap_ratio = structure;
     }
   }
   if (!have) return finish(first_reason);
   return finish("");
+}
+
+GlobalRegistrationResult GlobalRegistration::RegisterFrom(const PreparedSubmap& source,
+                                                          const PreparedSubmap& target,
+                                                          const Pose3& prior) const {
+  const auto start = Clock::now();
+  GlobalRegistrationResult result;
+  if (!target.fine_target) {
+    result.reason = "target not prepared as a target";
+  } else {
+    result.reason = Refine(source, target, prior, &result);
+    result.accepted = result.reason.empty();
+  }
+  result.time_s = SecondsSince(start);
+  return result;
+}
+
+std::string GlobalRegistration::Refine(const PreparedSubmap& source, const PreparedSubmap& target,
+                                       const Pose3& start, GlobalRegistrationResult* out) const {
+  const SubmapRegistrationResult fine =
+      fine_.Register(source.fine_source, *target.fine_target, start);
+  std::string reason = fine.reason;
+  double structure = 0.0;
+  if (fine.accepted) {
+    structure = StructureOverlap(source.coarse, *target.fine_target, fine.T_target_source, config_);
+    if (structure < config_.min_structure_overlap_ratio) {
+      reason = "structure overlap " + std::to_string(structure) + " below " +
+               std::to_string(config_.min_structure_overlap_ratio);
+    }
+  }
+  out->T_target_source = fine.T_target_source;
+  out->overlap_ratio = fine.overlap_ratio;
+  out->information = fine.information;
+  out->structure_overlap_ratio = structure;
+  return reason;
 }
 
 }  // namespace core

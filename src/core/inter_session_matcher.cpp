@@ -146,6 +146,8 @@ struct Job {
   std::size_t current = 0;
   std::size_t history = 0;
   std::size_t record = 0;
+  bool guided = false;                // registered from `prior` (fine stage only)
+  Pose3 prior = Pose3::Identity();    // T_history_current when guided
   GlobalRegistrationResult reg;
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
@@ -169,17 +171,20 @@ class PairRegistrar {
 
   // Registers `jobs` and fills their records (status kCandidate when registration accepted
   // them, kRejected with the reason otherwise); returns the accepted ones.
-  RegisteredLoops Run(Jobs* jobs, LoopRecords* records, std::vector<double>* registration_s) {
+  // Times go to the result's registration_s (without initial guess) or guided_registration_s.
+  RegisteredLoops Run(Jobs* jobs, InterSessionMatchResult* result) {
     PrepareMissing(*jobs);
     ParallelFor(jobs->size(), num_threads_, [&](std::size_t i) {
       Job& job = (*jobs)[i];
       const auto& source = prepared_.at({false, job.current});  // read-only lookups
       const auto& target = prepared_.at({true, job.history});
-      if (source && target) job.reg = registration_.Register(*source, *target);
+      if (!source || !target) return;
+      job.reg = job.guided ? registration_.RegisterFrom(*source, *target, job.prior)
+                           : registration_.Register(*source, *target);
     });
     RegisteredLoops registered;
     for (const Job& job : *jobs) {
-      LoopRecord& record = (*records)[job.record];
+      LoopRecord& record = result->records[job.record];
       const Submap& cur = current_.submaps[job.current];
       const Submap& hist = history_.submaps[job.history];
       const Key keys[] = {{false, job.current}, {true, job.history}};
@@ -196,13 +201,16 @@ class PairRegistrar {
         }
       }
       const GlobalRegistrationResult& reg = job.reg;
-      registration_s->push_back(reg.time_s + prepare_s);
+      (job.guided ? result->guided_registration_s : result->registration_s)
+          .push_back(reg.time_s + prepare_s);
       record.overlap_ratio = reg.overlap_ratio;
       record.structure_overlap_ratio = reg.structure_overlap_ratio;
       record.has_pose = true;
       record.T_history_current = reg.T_target_source;
       if (!reg.accepted) {
-        record.reason = "global registration: " + reg.reason;
+        record.reason = (job.guided ? "registration from the neighbouring loop's pose: "
+                                    : "global registration: ") +
+                        reg.reason;
         continue;
       }
       Registered r;
@@ -237,26 +245,40 @@ class PairRegistrar {
  private:
   using Key = std::pair<bool, std::size_t>;  // (history side, submap index)
 
+  // Prepares the submaps of `jobs` not prepared yet, with FPFH features where a job registers
+  // without initial guess (a submap prepared earlier without them is prepared again).
   void PrepareMissing(const Jobs& jobs) {
-    std::vector<Key> keys;
+    std::map<Key, bool> needs_features;
     for (const Job& job : jobs) {
       for (const Key& key : {Key{false, job.current}, Key{true, job.history}}) {
-        if (prepared_.emplace(key, nullptr).second) keys.push_back(key);
+        needs_features[key] = needs_features[key] || !job.guided;
       }
+    }
+    std::vector<std::pair<Key, bool>> keys;
+    for (const auto& [key, features] : needs_features) {
+      const auto found = prepared_.find(key);
+      const bool enough = found != prepared_.end() &&
+                          (!found->second || !features || featured_.count(key) > 0);
+      if (!enough) keys.emplace_back(key, features);
     }
     std::vector<StatusOr<std::shared_ptr<const PreparedSubmap>>> built(
         keys.size(), Status::Error("not run"));
     ParallelFor(keys.size(), num_threads_, [&](std::size_t i) {
-      const auto& [as_target, index] = keys[i];
+      const auto& [key, features] = keys[i];
+      const auto& [as_target, index] = key;
       const Submap& submap = as_target ? history_.submaps[index] : current_.submaps[index];
-      built[i] = registration_.Prepare(submap.points, as_target);
+      built[i] = registration_.Prepare(submap.points, as_target, features);
     });
     for (std::size_t i = 0; i < keys.size(); ++i) {
+      const Key& key = keys[i].first;
+      charged_.erase(key);  // a new preparation is charged to the next pair that uses it
       if (built[i].ok()) {
-        prepared_[keys[i]] = built[i].value();
+        prepared_[key] = built[i].value();
+        if (keys[i].second) featured_.insert(key);
       } else {
-        errors_[keys[i]] = (keys[i].first ? "history submap: " : "current submap: ") +
-                           built[i].status().message();
+        prepared_[key] = nullptr;
+        errors_[key] = (key.first ? "history submap: " : "current submap: ") +
+                       built[i].status().message();
       }
     }
   }
@@ -268,6 +290,7 @@ class PairRegistrar {
   std::vector<double> path_m_;  // distance driven in the session before each submap
   std::map<Key, std::shared_ptr<const PreparedSubmap>> prepared_;
   std::map<Key, std::string> errors_;
+  std::set<Key> featured_;  // prepared with FPFH features
   std::set<Key> charged_;
 };
 
@@ -386,6 +409,51 @@ double ShareNear(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen:
   return a.empty() ? 0.0 : static_cast<double>(near) / static_cast<double>(a.size());
 }
 
+// Registers `jobs`, each placed by the accepted loop reference_of_record[job.record], and
+// accepts those that agree with that loop under the sequence-consistency bounds.
+void RegisterAgainstReferences(Jobs* jobs,
+                               const std::map<std::size_t, const Registered*>& reference_of_record,
+                               const InterSessionMatcherConfig& config,
+                               const SessionResult& current, const std::string& relation,
+                               PairRegistrar* registrar, InterSessionMatchResult* result) {
+  if (jobs->empty()) return;
+  for (const Registered& r : registrar->Run(jobs, result)) {
+    LoopRecord& record = result->records[r.record];
+    const Registered& ref = *reference_of_record.at(r.record);
+    if (Agree(r, ref, config.consistency)) {
+      record.status = LoopStatus::kAccepted;
+      record.reason.clear();
+      result->loops.push_back(r.loop);
+    } else {
+      record.status = LoopStatus::kRejected;
+      record.reason = "disagrees with the loop of submap " +
+                      std::to_string(current.submaps[ref.current].id) + " that " + relation +
+                      " it";
+    }
+  }
+}
+
+// Per current submap: its accepted loop with the largest overlap (null: none).
+std::vector<const Registered*> BestAcceptedLoops(std::size_t num_submaps,
+                                                 const RegisteredLoops& registered,
+                                                 const std::vector<bool>& accepted) {
+  std::vector<const Registered*> best(num_submaps, nullptr);
+  for (std::size_t j = 0; j < registered.size(); ++j) {
+    if (!accepted[j]) continue;
+    const Registered*& b = best[registered[j].current];
+    if (!b || registered[j].loop.overlap_ratio > b->loop.overlap_ratio) b = &registered[j];
+  }
+  return best;
+}
+
+// Where `placement` (an accepted loop's T_map_session) puts current submap `c` relative to
+// history submap `h`: the prior T_history_current of a guided registration.
+Pose3 PriorOf(const Registered& placement, const Submap& history_submap,
+              const Submap& current_submap) {
+  return history_submap.T_map_submap.inverse() * placement.T_map_session *
+         current_submap.T_map_submap;
+}
+
 // Sequence guidance (see SequenceGuidanceConfig): loops for the submaps the votes left without
 // one, placed by an accepted loop of a neighbour along the session.
 void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents& history,
@@ -394,15 +462,8 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
                      InterSessionMatchResult* result) {
   const SequenceGuidanceConfig& sequence = config.sequence;
   const long n = static_cast<long>(current.submaps.size());
-  // Per current submap: its accepted loop with the largest overlap.
-  std::vector<const Registered*> reference(current.submaps.size(), nullptr);
-  for (std::size_t j = 0; j < registered.size(); ++j) {
-    if (!accepted[j]) continue;
-    const Registered*& best = reference[registered[j].current];
-    if (!best || registered[j].loop.overlap_ratio > best->loop.overlap_ratio) {
-      best = &registered[j];
-    }
-  }
+  const std::vector<const Registered*> reference =
+      BestAcceptedLoops(current.submaps.size(), registered, accepted);
   Jobs jobs;
   std::map<std::size_t, const Registered*> reference_of_record;
   std::vector<std::vector<Eigen::Vector3d>> history_positions(history.submaps.size());
@@ -446,25 +507,15 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
       job.current = static_cast<std::size_t>(c);
       job.history = h;
       job.record = result->records.size();
+      job.guided = config.guided_candidates;
+      job.prior = PriorOf(*ref, history.submaps[h], cur);
       jobs.push_back(job);
       reference_of_record[job.record] = ref;
       result->records.push_back(record);
     }
   }
-  if (jobs.empty()) return;
-  for (const Registered& r : registrar->Run(&jobs, &result->records, &result->registration_s)) {
-    LoopRecord& record = result->records[r.record];
-    const Registered& ref = *reference_of_record.at(r.record);
-    if (Agree(r, ref, config.consistency)) {
-      record.status = LoopStatus::kAccepted;
-      record.reason.clear();
-      result->loops.push_back(r.loop);
-    } else {
-      record.status = LoopStatus::kRejected;
-      record.reason = "disagrees with the loop of submap " +
-                      std::to_string(current.submaps[ref.current].id) + " that placed it";
-    }
-  }
+  RegisterAgainstReferences(&jobs, reference_of_record, config, current, "placed", registrar,
+                            result);
 }
 
 }  // namespace
@@ -489,8 +540,9 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
       SubmapVoting::OriginsWithin(active_origins, config_.neighbour_distance_m);
 
   InterSessionMatchResult result;
-  // 1. Votes and the candidate pairs to register, in submap order (records keep that order).
-  Jobs jobs;
+  // 1. Votes and the candidate pairs to register, in submap order (records keep that order),
+  // per current submap in vote order.
+  std::vector<Jobs> candidates(current.submaps.size());
   for (std::size_t c = 0; c < current.submaps.size(); ++c) {
     const Submap& cur = current.submaps[c];
     const SubmapVoteResult vote = voting.value().Vote(recognizer.VotesOf(cur.id), neighbours);
@@ -523,18 +575,75 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
         job.current = c;
         job.history = found->second;
         job.record = result.records.size();
-        jobs.push_back(job);
+        candidates[c].push_back(job);
       }
       result.records.push_back(record);
     }
   }
 
-  // 2. Global registration of every candidate pair, on config_.num_threads threads.
+  // 2. Registration of the candidate pairs, on config_.num_threads threads, and 3. sequence
+  // consistency.
   PairRegistrar registrar(history, current, registration.value(), config_.num_threads);
-  const RegisteredLoops registered = registrar.Run(&jobs, &result.records, &result.registration_s);
-
-  // 3. Sequence consistency.
-  const std::vector<bool> in_group = DecideConsistency(registered, config_.consistency, &result);
+  RegisteredLoops registered;
+  std::vector<bool> in_group;
+  if (!config_.guided_candidates) {
+    // Every candidate pair without initial guess.
+    Jobs jobs;
+    for (const Jobs& of_submap : candidates) jobs.insert(jobs.end(), of_submap.begin(), of_submap.end());
+    registered = registrar.Run(&jobs, &result);
+    in_group = DecideConsistency(registered, config_.consistency, &result);
+  } else {
+    // Rounds without initial guess: each submap's next candidate in vote order, until the
+    // registration accepts one of them or none is left.
+    std::vector<std::size_t> next(current.submaps.size(), 0);
+    std::vector<bool> has_loop(current.submaps.size(), false);
+    auto register_globally = [&](Jobs* jobs) {
+      for (const Registered& r : registrar.Run(jobs, &result)) {
+        has_loop[r.current] = true;
+        registered.push_back(r);
+      }
+    };
+    for (;;) {
+      Jobs round;
+      for (std::size_t c = 0; c < candidates.size(); ++c) {
+        if (!has_loop[c] && next[c] < candidates[c].size()) round.push_back(candidates[c][next[c]++]);
+      }
+      if (round.empty()) break;
+      register_globally(&round);
+    }
+    in_group = DecideConsistency(registered, config_.consistency, &result);
+    // A submap whose loops all fell out of the groups: its other candidates without initial
+    // guess too, and the groups are decided again with them.
+    std::vector<const Registered*> reference =
+        BestAcceptedLoops(current.submaps.size(), registered, in_group);
+    Jobs rest;
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+      while (!reference[c] && next[c] < candidates[c].size()) rest.push_back(candidates[c][next[c]++]);
+    }
+    if (!rest.empty()) {
+      register_globally(&rest);
+      result.loops.clear();
+      result.T_map_session = Pose3::Identity();
+      result.aligned = false;
+      in_group = DecideConsistency(registered, config_.consistency, &result);
+      reference = BestAcceptedLoops(current.submaps.size(), registered, in_group);
+    }
+    // The remaining candidates of a submap with an accepted loop: from where that loop places
+    // the submap (fine stage only), kept when they agree with it.
+    Jobs guided;
+    std::map<std::size_t, const Registered*> reference_of_record;
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+      for (; reference[c] && next[c] < candidates[c].size(); ++next[c]) {
+        Job job = candidates[c][next[c]];
+        job.guided = true;
+        job.prior = PriorOf(*reference[c], history.submaps[job.history], current.submaps[c]);
+        guided.push_back(job);
+        reference_of_record[job.record] = reference[c];
+      }
+    }
+    RegisterAgainstReferences(&guided, reference_of_record, config_, current, "guided",
+                              &registrar, &result);
+  }
 
   // 4. Sequence guidance for the submaps still without a loop.
   if (result.aligned && config_.sequence.max_gap_submaps > 0) {

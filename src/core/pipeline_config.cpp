@@ -111,6 +111,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"inter_session", "sequence_max_gap_submaps", &m.matching.sequence.max_gap_submaps},
       {"inter_session", "sequence_max_candidates", &m.matching.sequence.max_candidates},
       {"inter_session", "sequence_search_radius_m", &m.matching.sequence.search_radius_m},
+      {"inter_session", "guided_candidates", &m.matching.guided_candidates},
       {"inter_session", "loop_sigma_translation_m", &m.inter_sigma_translation_m},
       {"inter_session", "loop_sigma_rotation_rad", &m.inter_sigma_rotation_rad},
       {"proximity_loops", "enabled", &m.proximity.enabled},

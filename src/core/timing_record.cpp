@@ -52,6 +52,7 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   out << YAML::EndMap;
   out << YAML::Key << "per_pair_s" << YAML::Value << YAML::BeginMap;
   Emit(&out, "global_registration", timings.global_registration_s);
+  Emit(&out, "guided_registration", timings.guided_registration_s);
   Emit(&out, "dynamic_detection", timings.dynamic_detection_s);
   out << YAML::EndMap;
   out << YAML::Key << "merge_s" << YAML::Value << run.merge_s;

@@ -218,6 +218,7 @@ class MapMergingNodelet : public nodelet::Nodelet {
     // The timing record again, now with the merge figures (as offline_mapper writes it). Wall
     // time: first to last scan of the session plus the merge, without the idle wait.
     timings.global_registration_s = r.matching.registration_s;
+    timings.guided_registration_s = r.matching.guided_registration_s;
     timings.dynamic_detection_s = r.dynamic_pair_s;
     run.merge_matching_s = r.matching_s;
     run.merge_optimisation_s = r.optimisation_s;

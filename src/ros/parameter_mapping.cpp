@@ -80,6 +80,7 @@ namespace ros_params {
   F(inter_session_sequence_max_gap_submaps, g.matching.sequence.max_gap_submaps)              \
   F(inter_session_sequence_max_candidates, g.matching.sequence.max_candidates)                \
   F(inter_session_sequence_search_radius_m, g.matching.sequence.search_radius_m)              \
+  F(inter_session_guided_candidates, g.matching.guided_candidates)                            \
   F(inter_session_loop_sigma_translation_m, g.inter_sigma_translation_m)                      \
   F(inter_session_loop_sigma_rotation_rad, g.inter_sigma_rotation_rad)                        \
   F(registration_coarse_voxel_m, g.matching.registration.coarse_voxel_m)                      \

@@ -244,6 +244,7 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   }
   map.parameters_yaml = core::PipelineConfigToYaml(config);
   result.value().timings.global_registration_s = merged.value().matching.registration_s;
+  result.value().timings.guided_registration_s = merged.value().matching.guided_registration_s;
   result.value().timings.dynamic_detection_s = merged.value().dynamic_pair_s;
   core::SessionRunInfo run;
   run.merge_matching_s = merged.value().matching_s;

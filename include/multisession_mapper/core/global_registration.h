@@ -126,9 +126,12 @@ class GlobalRegistration {
   /// Prepares both (time_s includes it).
   GlobalRegistrationResult Register(const PointVector& source, const PointVector& target) const;
 
-  /// Prepares one submap; `as_target` also builds the fine-stage target. Fails on empty input.
+  /// Prepares one submap; `as_target` also builds the fine-stage target; without
+  /// `with_features` the FPFH features are left out (enough for RegisterFrom, not for
+  /// Register). Fails on empty input.
   StatusOr<std::shared_ptr<const PreparedSubmap>> Prepare(const PointVector& points,
-                                                          bool as_target) const;
+                                                          bool as_target,
+                                                          bool with_features = true) const;
   /// Time spent preparing `submap` [s].
   static double PrepareSeconds(const PreparedSubmap& submap);
   /// The fine-stage target of a submap prepared with as_target (null otherwise), built with
@@ -139,9 +142,19 @@ class GlobalRegistration {
   GlobalRegistrationResult Register(const PreparedSubmap& source,
                                     const PreparedSubmap& target) const;
 
+  /// The fine stage of Register() alone, from `prior` (T_target_source, e.g. where an accepted
+  /// loop of a neighbouring pair places the source): ICP within config().fine's correction
+  /// bounds, then the same overlap and structure-overlap checks. coarse_inliers stays 0.
+  GlobalRegistrationResult RegisterFrom(const PreparedSubmap& source,
+                                        const PreparedSubmap& target, const Pose3& prior) const;
+
   const GlobalRegistrationConfig& config() const { return config_; }
 
  private:
+  // Fine registration from `start` with the acceptance checks: fills `out`'s pose, overlaps
+  // and information and returns why it was rejected (empty when accepted).
+  std::string Refine(const PreparedSubmap& source, const PreparedSubmap& target,
+                     const Pose3& start, GlobalRegistrationResult* out) const;
   GlobalRegistration(const GlobalRegistrationConfig& config, SubmapRegistration fine)
       : config_(config), fine_(std::move(fine)) {}
   GlobalRegistrationConfig config_;

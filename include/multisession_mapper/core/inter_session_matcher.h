@@ -69,8 +69,8 @@ struct SequenceConsistencyConfig {
 /// 0.10-0.15 away where revisits match at 0.055-0.07). A submap without an accepted loop whose
 /// neighbour along the session, at most `max_gap_submaps` submaps away, has one is placed in
 /// the map by that loop and the session's odometry between the two; it is then registered
-/// without initial guess (the same global registration) against the `max_candidates` active
-/// history submaps driven nearest that place: those with the largest share of the placed
+/// (from that placement with guided_candidates, else without initial guess) against the
+/// `max_candidates` active history submaps driven nearest that place: those with the largest share of the placed
 /// submap's scan positions within `search_radius_m` [m] of one of theirs (a revisit, not a
 /// view across a block); a loop is kept only when it also agrees with the neighbour's loop
 /// under the sequence-consistency bounds. Such loops are recorded with kind `inter_sequence`.
@@ -90,6 +90,17 @@ struct InterSessionMatcherConfig {
   GlobalRegistrationConfig registration;
   SequenceConsistencyConfig consistency;
   SequenceGuidanceConfig sequence;
+  /// Guided candidates. A submap's votes often name several history submaps (a neighbour group,
+  /// two passes of a route), and registering each of them without initial guess was most of a
+  /// merge's matching time. When true, the candidates of a submap are registered without
+  /// initial guess one at a time in vote order until the registration accepts one; once the
+  /// sequence consistency has accepted a loop of the submap, its remaining candidates are
+  /// registered from where that loop places the submap (GlobalRegistration::RegisterFrom:
+  /// the fine stage alone, same acceptance checks) and kept when they agree with it. A submap
+  /// whose loops the consistency rejected has its remaining candidates registered without
+  /// initial guess, and the groups are decided again. Sequence guidance registers from the
+  /// placement too. False: every candidate pair without initial guess (slower).
+  bool guided_candidates = true;
   /// Threads for preparing and registering the candidate pairs. Not a YAML key: SessionMerger
   /// sets it from map_update.num_threads (one thread budget for the whole merge).
   int num_threads = 1;
@@ -118,7 +129,11 @@ struct InterSessionMatchResult {
   LoopRecords records;
   /// Per current submap: the vote (ordered like SessionResult::submaps).
   std::vector<SubmapVoteResult> votes;
-  std::vector<double> registration_s;  ///< time per registered candidate pair [s]
+  /// Time per candidate pair registered without initial guess [s] (with the preparation of a
+  /// submap charged to the first pair that used it).
+  std::vector<double> registration_s;
+  /// Time per pair registered from a neighbouring loop's pose (guided_candidates) [s].
+  std::vector<double> guided_registration_s;
   /// The fine-registration targets built for history submaps (key: index into
   /// MapContents::submaps), with registration.fine; the merger's proximity search reuses those
   /// built like its own (SubmapTarget::BuiltLike) instead of building them again, and then

@@ -72,6 +72,8 @@ struct SessionTimings {
   std::vector<double> descriptor_ms;      ///< per scan, filled by the place recognizer
   std::vector<double> query_ms;           ///< per scan with a history database
   std::vector<double> global_registration_s;  ///< per inter-session candidate pair (merge)
+  /// Per inter-session candidate pair registered from a neighbouring loop's pose (merge).
+  std::vector<double> guided_registration_s;
   std::vector<double> dynamic_detection_s;    ///< per overlapping submap pair (merge)
 };
 
