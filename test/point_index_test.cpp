@@ -60,6 +60,18 @@ TEST(PointIndexTest, QueriesAgreeWithBruteForce) {
     EXPECT_EQ(found[0], best);
     index.value().Nearest(q, 5, std::sqrt(best_d2) * 0.5, &found);
     EXPECT_TRUE(found.empty());
+    // k nearest within a radius, nearest first: fewer than k where the radius holds fewer.
+    std::vector<std::pair<double, std::uint32_t>> by_distance;
+    for (std::uint32_t i : within) by_distance.push_back({(pts[i] - q).squaredNorm(), i});
+    std::sort(by_distance.begin(), by_distance.end());
+    for (std::size_t k : {std::size_t{3}, std::size_t{40}}) {
+      std::vector<std::uint32_t> expected;
+      for (std::size_t j = 0; j < std::min(k, by_distance.size()); ++j) {
+        expected.push_back(by_distance[j].second);
+      }
+      index.value().Nearest(q, k, 0.8, &found);
+      EXPECT_EQ(found, expected) << "k " << k;
+    }
   }
 }
 

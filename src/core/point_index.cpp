@@ -31,6 +31,35 @@ class IndexCollector {
   std::vector<std::uint32_t>* out_;
 };
 
+// The k nearest points within a squared radius, nearest first. The radius bounds the search
+// from the start (an unbounded k-nearest search then filtered by the radius explores far
+// branches wherever fewer than k points are near: half of a merge's dynamic-detection time).
+class BoundedKNearest {
+ public:
+  BoundedKNearest(std::size_t k, double radius_sq) : k_(k), radius_sq_(radius_sq) {
+    best_.reserve(k + 1);
+  }
+  std::size_t size() const { return best_.size(); }
+  bool full() const { return true; }
+  double worstDist() const { return best_.size() < k_ ? radius_sq_ : best_.back().first; }
+  bool addPoint(double dist, std::uint32_t index) {
+    if (dist > worstDist()) return true;
+    // After the entries of equal distance, as nanoflann's KNNResultSet keeps them.
+    const auto at = std::upper_bound(
+        best_.begin(), best_.end(), dist,
+        [](double d, const std::pair<double, std::uint32_t>& e) { return d < e.first; });
+    best_.insert(at, {dist, index});
+    if (best_.size() > k_) best_.pop_back();
+    return true;
+  }
+  const std::vector<std::pair<double, std::uint32_t>>& best() const { return best_; }
+
+ private:
+  std::size_t k_;
+  double radius_sq_;
+  std::vector<std::pair<double, std::uint32_t>> best_;
+};
+
 }  // namespace
 
 struct PointIndex::Impl {
@@ -101,14 +130,9 @@ void PointIndex::Nearest(const Eigen::Vector3d& query, std::size_t k, double max
                          std::vector<std::uint32_t>* out) const {
   out->clear();
   if (impl_->points.empty() || k == 0) return;
-  k = std::min(k, impl_->points.size());
-  std::vector<std::uint32_t> indices(k);
-  std::vector<double> dists(k);
-  const std::size_t found = impl_->tree->knnSearch(query.data(), k, indices.data(), dists.data());
-  const double max_sq = max_radius_m * max_radius_m;
-  for (std::size_t j = 0; j < found; ++j) {
-    if (dists[j] <= max_sq) out->push_back(indices[j]);
-  }
+  BoundedKNearest result(k, max_radius_m * max_radius_m);
+  impl_->tree->findNeighbors(result, query.data(), nanoflann::SearchParams(32, 0.0f, false));
+  for (const auto& [distance_sq, index] : result.best()) out->push_back(index);
 }
 
 }  // namespace core
