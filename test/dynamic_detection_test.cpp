@@ -661,17 +661,24 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   EXPECT_TRUE(empty.value().current_dynamic.empty());
 }
 
+// The car scene of the shared-index tests, detected once with the indices built inside.
+class SharedIndexTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(detector.ok());
+    own = detector.value().Detect(history.submap, current.submap, HistoryFrame());
+    ASSERT_TRUE(own.ok()) << own.status().message();
+  }
+  const SessionData history = MakeSession(Scene{true}, 0.0, 11, HistoryFrame());
+  const SessionData current = MakeSession(Scene{false}, 0.3, 12, Pose3::Identity());
+  const StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());
+  StatusOr<DynamicDetectionResult> own = Status::Error("not run");
+};
+
 // The merge builds one neighbour index per current submap and shares it between that
 // submap's pairs: the result is the same as with the index built inside; an index over other
 // points is refused.
-TEST(DynamicDetectionTest, SharedCurrentIndexGivesTheSameResult) {
-  const SessionData history = MakeSession(Scene{true}, 0.0, 11, HistoryFrame());
-  const SessionData current = MakeSession(Scene{false}, 0.3, 12, Pose3::Identity());
-  StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());
-  ASSERT_TRUE(detector.ok());
-  const StatusOr<DynamicDetectionResult> own =
-      detector.value().Detect(history.submap, current.submap, HistoryFrame());
-  ASSERT_TRUE(own.ok()) << own.status().message();
+TEST_F(SharedIndexTest, SharedCurrentIndexGivesTheSameResult) {
   StatusOr<PointIndex> index = PointIndex::Create(current.submap.points);
   ASSERT_TRUE(index.ok());
   for (int pair = 0; pair < 2; ++pair) {  // used twice, as by two pairs
@@ -690,6 +697,44 @@ TEST(DynamicDetectionTest, SharedCurrentIndexGivesTheSameResult) {
       detector.value().Detect(history.submap, current.submap, HistoryFrame(), other.value());
   ASSERT_FALSE(wrong.ok());
   EXPECT_NE(wrong.status().message().find("index"), std::string::npos);
+}
+
+// The merge can also share one index per history submap, built in that submap's own frame
+// (the detection moves its queries there): the same result as with both indices built inside,
+// with a non-trivial rotation between the frames; a history index of another size is refused.
+// The steps' times add up to no more than the whole detection.
+TEST_F(SharedIndexTest, SharedIndicesOfBothSubmapsGiveTheSameResult) {
+  StatusOr<PointIndex> history_index = PointIndex::Create(history.submap.points);
+  StatusOr<PointIndex> current_index = PointIndex::Create(current.submap.points);
+  ASSERT_TRUE(history_index.ok() && current_index.ok());
+  const StatusOr<DynamicDetectionResult> shared = detector.value().Detect(
+      history.submap, current.submap, HistoryFrame(), history_index.value(),
+      current_index.value());
+  ASSERT_TRUE(shared.ok()) << shared.status().message();
+  EXPECT_FALSE(shared.value().history_dynamic.empty());
+  EXPECT_FALSE(shared.value().current_mending.empty());
+  EXPECT_EQ(shared.value().history_dynamic, own.value().history_dynamic);
+  EXPECT_EQ(shared.value().current_dynamic, own.value().current_dynamic);
+  EXPECT_EQ(shared.value().current_mending, own.value().current_mending);
+  EXPECT_EQ(shared.value().examined_objects.size(), own.value().examined_objects.size());
+
+  const DynamicDetectionResult::StageTimes& st = own.value().stage;
+  const double steps = st.index_s + st.ground_s + st.common_s + st.rays_s + st.dynamic_s +
+                       st.changed_s + st.mending_s;
+  EXPECT_GT(st.index_s, 0.0);
+  EXPECT_GT(st.rays_s, 0.0);
+  EXPECT_LE(steps, own.value().time_s + 1e-9);
+  EXPECT_EQ(shared.value().stage.index_s, 0.0);  // nothing built inside
+
+  const StatusOr<DynamicDetectionResult> wrong =
+      detector.value().Detect(history.submap, current.submap, HistoryFrame(),
+                              current_index.value(), current_index.value());
+  ASSERT_FALSE(wrong.ok());
+  ASSERT_NE(history.submap.points.size(), current.submap.points.size());
+  EXPECT_NE(wrong.status().message().find(
+                "the submap " + std::to_string(history.submap.points.size())),
+            std::string::npos)
+      << wrong.status().message();
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "multisession_mapper/core/local_plane.h"
 #include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/ray_voxel_grid.h"
+#include "multisession_mapper/core/stopwatch.h"
 #include "multisession_mapper/core/voxel_key.h"
 
 namespace multisession_mapper {
@@ -128,17 +129,50 @@ class GroundGrid {
   std::vector<float> ground_;
 };
 
+// A side's neighbour index, built over its submap's points in the submap's own frame, so that
+// every pair of the submap can share it. Queries come in the frame of the detection (the
+// current submap's) and are moved into the index's frame first; distances do not change under
+// the rigid motion, so the answers are those of an index over the moved points (up to rounding
+// at the radius). With the identity (the current side) the moved query is the query, exactly.
+class FrameIndex {
+ public:
+  FrameIndex(const PointIndex& index, const Pose3& T_index_detection)
+      : index_(index),
+        rotation_(T_index_detection.linear()),
+        translation_(T_index_detection.translation()) {}
+  bool NearestWithin(const Eigen::Vector3d& query, double max_radius_m, std::uint32_t* index,
+                     double* distance_sq) const {
+    return index_.NearestWithin(Move(query), max_radius_m, index, distance_sq);
+  }
+  void Radius(const Eigen::Vector3d& query, double radius_m,
+              std::vector<std::uint32_t>* out) const {
+    index_.Radius(Move(query), radius_m, out);
+  }
+  void Nearest(const Eigen::Vector3d& query, std::size_t k, double max_radius_m,
+               std::vector<std::uint32_t>* out) const {
+    index_.Nearest(Move(query), k, max_radius_m, out);
+  }
+
+ private:
+  Eigen::Vector3d Move(const Eigen::Vector3d& query) const {
+    return rotation_ * query + translation_;
+  }
+  const PointIndex& index_;
+  Eigen::Matrix3d rotation_;
+  Eigen::Vector3d translation_;
+};
+
 class PairDetection {
  public:
-  PairDetection(const DynamicDetectionConfig& config, Side* sides, const PointIndex& history,
-                const PointIndex& current)
+  PairDetection(const DynamicDetectionConfig& config, Side* sides, const FrameIndex& history,
+                const FrameIndex& current)
       : config_(config), sides_(sides), indices_{&history, &current} {}
 
   // Steps 1-2: seeds and region growing of the common parts.
   void FindCommonParts() {
     for (int s = 0; s < 2; ++s) {
       Side& side = sides_[s];
-      const PointIndex& other = *indices_[1 - s];
+      const FrameIndex& other = *indices_[1 - s];
       const std::size_t n = side.points.size();
       side.common.assign(n, 0);
       side.far.assign(n, 0);
@@ -718,7 +752,7 @@ class PairDetection {
 
   const DynamicDetectionConfig& config_;
   Side* sides_;
-  const PointIndex* indices_[2];  // kHistory, kCurrent
+  const FrameIndex* indices_[2];  // kHistory, kCurrent
   std::unique_ptr<RayVoxelGrid> grid_;
   std::unique_ptr<RayVoxelGrid> coarse_;
   LocalPlaneCriteria plane_;
@@ -834,11 +868,12 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   const auto start = std::chrono::steady_clock::now();
   StatusOr<PointIndex> current_index = PointIndex::Create(current.points);
   if (!current_index.ok()) return current_index.status();
+  const double index_s = SecondsSince(start);
   StatusOr<DynamicDetectionResult> result =
       Detect(history, current, T_current_history, current_index.value());
   if (result.ok()) {
-    result.value().time_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    result.value().time_s = SecondsSince(start);
+    result.value().stage.index_s += index_s;
   }
   return result;
 }
@@ -848,12 +883,40 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
                                                          const Pose3& T_current_history,
                                                          const PointIndex& current_index) const {
   const auto start = std::chrono::steady_clock::now();
+  StatusOr<PointIndex> history_index = PointIndex::Create(history.points);
+  if (!history_index.ok()) return history_index.status();
+  const double index_s = SecondsSince(start);
+  StatusOr<DynamicDetectionResult> result =
+      Detect(history, current, T_current_history, history_index.value(), current_index);
+  if (result.ok()) {
+    result.value().time_s = SecondsSince(start);
+    result.value().stage.index_s += index_s;
+  }
+  return result;
+}
+
+namespace {
+
+// An error unless `index` was built over the points of `submap`.
+Status CheckIndexSize(const Submap& submap, const PointIndex& index) {
+  if (index.size() == submap.points.size()) return Status::Ok();
+  return Status::Error("dynamic_detection: the index of submap " + submap.session + "/" +
+                       std::to_string(submap.id) + " holds " + std::to_string(index.size()) +
+                       " points, the submap " + std::to_string(submap.points.size()));
+}
+
+}  // namespace
+
+StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
+                                                         const Submap& current,
+                                                         const Pose3& T_current_history,
+                                                         const PointIndex& history_index,
+                                                         const PointIndex& current_index) const {
+  const auto start = std::chrono::steady_clock::now();
   DynamicDetectionResult result;
-  if (current_index.size() != current.points.size()) {
-    return Status::Error("dynamic_detection: the index of submap " + current.session + "/" +
-                         std::to_string(current.id) + " holds " +
-                         std::to_string(current_index.size()) + " points, the submap " +
-                         std::to_string(current.points.size()));
+  for (const Status& status :
+       {CheckIndexSize(history, history_index), CheckIndexSize(current, current_index)}) {
+    if (!status.ok()) return status;
   }
   if (history.points.empty() || current.points.empty()) return result;
   if (history.scans.empty() || current.scans.empty()) {
@@ -871,16 +934,27 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   sides[kHistory].origins = ThinOrigins(history, T_current_history, config_.origin_spacing_m);
   sides[kCurrent].origins = ThinOrigins(current, Pose3::Identity(), config_.origin_spacing_m);
 
-  StatusOr<PointIndex> history_index = PointIndex::Create(sides[kHistory].points);
-  if (!history_index.ok()) return history_index.status();
-
-  PairDetection pair(config_, sides, history_index.value(), current_index);
+  DynamicDetectionResult::StageTimes& stage = result.stage;
+  auto lap = std::chrono::steady_clock::now();
+  // Adds the time since the last lap to `slot`.
+  auto clock = [&lap](double* slot) {
+    const auto now = std::chrono::steady_clock::now();
+    *slot += std::chrono::duration<double>(now - lap).count();
+    lap = now;
+  };
+  const FrameIndex history_in_detection(history_index, T_current_history.inverse());
+  const FrameIndex current_in_detection(current_index, Pose3::Identity());
+  PairDetection pair(config_, sides, history_in_detection, current_in_detection);
   pair.EstimateGround();
+  clock(&stage.ground_s);
   pair.FindCommonParts();
+  clock(&stage.common_s);
   const Status cast = pair.CastRays();
   if (!cast.ok()) return cast;
+  clock(&stage.rays_s);
   result.history_dynamic = pair.DetectDynamic(kHistory);
   result.current_dynamic = pair.DetectDynamic(kCurrent);
+  clock(&stage.dynamic_s);
   if (config_.changed_objects_enabled) {
     for (int s : {kHistory, kCurrent}) {
       std::vector<std::uint32_t>& dynamic =
@@ -894,9 +968,10 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
       dynamic = std::move(merged);
     }
   }
+  clock(&stage.changed_s);
   result.current_mending = pair.Mending(result.current_dynamic);
-  result.time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  clock(&stage.mending_s);
+  result.time_s = SecondsSince(start);
   return result;
 }
 

@@ -46,6 +46,7 @@
 #include "multisession_mapper/core/kdtree_target.h"
 #include "multisession_mapper/core/remembering_kdtree.h"
 #include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/stopwatch.h"
 #include "multisession_mapper/core/voxel_downsample.h"
 
 namespace multisession_mapper {
@@ -54,10 +55,6 @@ namespace core {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 // The coarse cloud of one submap: downsampled, cropped, with PCL normals and FPFH features.
 struct CoarseCloud {

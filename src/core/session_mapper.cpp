@@ -5,16 +5,10 @@
 #include <cmath>
 
 #include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/stopwatch.h"
 
 namespace multisession_mapper {
 namespace core {
-namespace {
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-}  // namespace
 
 Status IntraLoopConfig::Validate() const {
   if (!(search_radius_m > 0.0)) return Status::Error("intra_loops.search_radius_m must be > 0");

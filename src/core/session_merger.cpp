@@ -14,6 +14,8 @@
 #include "multisession_mapper/core/dynamic_propagation.h"
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/point_index.h"
+#include "multisession_mapper/core/point_index_pool.h"
+#include "multisession_mapper/core/stopwatch.h"
 #include "multisession_mapper/core/voxel_occupancy.h"
 
 namespace multisession_mapper {
@@ -21,10 +23,6 @@ namespace core {
 namespace {
 
 constexpr char kDatabaseFile[] = "database/descriptors.bin";
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 bool Finite(double v) { return std::isfinite(v); }
 
@@ -430,30 +428,39 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   auto pose_of_history = [&](std::size_t h) { return graph.NodePose(history_node(h)); };
   auto pose_of_current = [&](std::size_t c) { return graph.NodePose(current_node(c)); };
   // The pairs of one current submap share its neighbour index (built once, in its own frame,
-  // which is the frame of the detection).
+  // which is the frame of the detection); the pairs of one history submap share its index too,
+  // in the history submap's own frame, from a pool that frees it after its last pair.
   std::vector<std::vector<std::size_t>> pairs_of_current(session.submaps.size());
-  for (std::size_t i = 0; i < pairs.size(); ++i) pairs_of_current[pairs[i].current].push_back(i);
+  std::vector<int> pairs_of_history(map->submaps.size(), 0);
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    pairs_of_current[pairs[i].current].push_back(i);
+    ++pairs_of_history[pairs[i].history];
+  }
+  PointIndexPool history_indices(
+      std::move(pairs_of_history),
+      [&](std::size_t h) -> const PointVector& { return map->submaps[h].points; });
   ParallelFor(session.submaps.size(), config_.num_threads, [&](std::size_t c) {
     const std::vector<std::size_t>& members = pairs_of_current[c];
     if (members.empty()) return;
     const Submap& cs = session.submaps[c];
     const auto index_start = std::chrono::steady_clock::now();
     StatusOr<PointIndex> index = PointIndex::Create(cs.points);
-    // Each pair's time includes its share of the index.
-    const double index_share_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - index_start).count() /
-        static_cast<double>(members.size());
+    // Each pair's time includes its shares of the indices.
+    const double index_share_s = SecondsSince(index_start) / static_cast<double>(members.size());
     for (std::size_t i : members) {
-      if (!index.ok()) {
-        detections[i] = index.status();
+      const Pair& p = pairs[i];
+      StatusOr<PointIndexPool::Lease> history_index = history_indices.Acquire(p.history);
+      if (!index.ok() || !history_index.ok()) {
+        detections[i] = !index.ok() ? index.status() : history_index.status();
         continue;
       }
-      const Pair& p = pairs[i];
       const Pose3 T_current_history =
           pose_of_current(p.current).inverse() * pose_of_history(p.history);
       detections[i] = detector.value().Detect(map->submaps[p.history], cs, T_current_history,
-                                              index.value());
-      if (detections[i].ok()) detections[i].value().time_s += index_share_s;
+                                              *history_index.value().index, index.value());
+      if (detections[i].ok()) {
+        detections[i].value().time_s += index_share_s + history_index.value().build_share_s;
+      }
     }
   });
   std::map<std::size_t, std::set<std::uint32_t>> removed;  // history index -> point indices

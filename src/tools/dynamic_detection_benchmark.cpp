@@ -3,7 +3,7 @@
 //
 //   dynamic_detection_benchmark --sim DIR --history-map DIR --current-map DIR
 //       [--history s00] [--current s01] [--pair-radius 15] [--voxel 0.2] [--max-pairs N]
-//       [--align submap|start] [--compare-octomap]
+//       [--align submap|start] [--compare-octomap] [--own-indices]
 //
 // GROUND TRUTH IS USED HERE ONLY (never by the pipeline): the two maps are put into the world
 // frame with the truth poses of truth/<session>.tum: `--align submap` (default) places every
@@ -38,6 +38,7 @@
 #include "multisession_mapper/core/dynamic_detection.h"
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/point_index.h"
+#include "multisession_mapper/core/point_index_pool.h"
 #include "multisession_mapper/core/ray_voxel_grid.h"
 #include "multisession_mapper/core/trajectory_io.h"
 #include "multisession_mapper/sim/label_cloud.h"
@@ -62,6 +63,8 @@ const char kUsage[] =
     "  --per-object       list the vacated low-dynamic objects with their removed points, and\n"
     "                     every object the changed-object step examined, with its truth\n"
     "  --compare-octomap  time OctoMap key lookups against the own voxel grid on the same rays\n"
+    "  --own-indices      build both neighbour indices inside every pair instead of one per\n"
+    "                     submap shared by its pairs (as the merge does)\n"
     "  --json FILE        also write the figures as JSON\n"
     "  --set KEY=VALUE    override a detector parameter (seed_distance_m, support_radius_m,\n"
     "                     min_passing_rays, max_support_points, min_cluster_points,\n"
@@ -273,6 +276,7 @@ int main(int argc, char** argv) {
   double pair_radius = 15.0, voxel = 0.0, eval_range = 25.0;
   long long max_pairs = 0;
   bool compare_octomap = false;
+  bool shared_indices = true;
   bool per_object = false;
   std::string guard_mode = "both";
   std::string json_path;
@@ -298,6 +302,7 @@ int main(int argc, char** argv) {
     else if (arg == "--voxel") ok = next(&value) && msm::tools::ParseDouble(value, &voxel);
     else if (arg == "--max-pairs") ok = next(&value) && msm::tools::ParseInt(value, &max_pairs);
     else if (arg == "--compare-octomap") compare_octomap = true;
+    else if (arg == "--own-indices") shared_indices = false;
     else if (arg == "--per-object") per_object = true;
     else if (arg == "--guard") ok = next(&guard_mode) && (guard_mode == "on" || guard_mode == "off" || guard_mode == "both");
     else if (arg == "--json") ok = next(&json_path);
@@ -454,23 +459,61 @@ int main(int argc, char** argv) {
       for (const auto& submap : d.submaps) flags[s].emplace_back(submap.points.size(), 0);
     }
     std::vector<double> times, cpu_times;
+    // Per step of the detection (DynamicDetectionResult::StageTimes), in its order.
+    const char* const kStageNames[] = {"index", "ground", "common", "rays", "dynamic", "changed",
+                                       "mending"};
+    constexpr int kStages = 7;
+    std::vector<double> stage_times[kStages];
     std::size_t mending = 0;
     struct Examined {
       core::DynamicDetectionResult::ExaminedObject object;
       std::size_t submap;
     };
     std::vector<Examined> examined;
+    // As in the merge: one neighbour index per submap, shared by its pairs (each pair is
+    // charged its share of both indices' construction).
+    std::vector<int> uses[2] = {std::vector<int>(H.submaps.size(), 0),
+                                std::vector<int>(C.submaps.size(), 0)};
+    for (const auto& [h, c] : pairs) {
+      ++uses[0][h];
+      ++uses[1][c];
+    }
+    core::PointIndexPool history_indices(
+        uses[0], [&](std::size_t k) -> const core::PointVector& { return H.submaps[k].points; });
+    core::PointIndexPool current_indices(
+        uses[1], [&](std::size_t k) -> const core::PointVector& { return C.submaps[k].points; });
     for (const auto& [h, c] : pairs) {
       const Eigen::Isometry3d T_current_history = C.T_world_submap[c].inverse() * H.T_world_submap[h];
       const std::clock_t cpu_start = std::clock();
-      core::StatusOr<core::DynamicDetectionResult> result =
-          detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history);
+      core::StatusOr<core::DynamicDetectionResult> result(core::Status::Error("not run"));
+      double index_share_s = 0.0;
+      if (shared_indices) {
+        core::StatusOr<core::PointIndexPool::Lease> history_index = history_indices.Acquire(h);
+        core::StatusOr<core::PointIndexPool::Lease> current_index = current_indices.Acquire(c);
+        if (!history_index.ok() || !current_index.ok()) {
+          result = !history_index.ok() ? history_index.status() : current_index.status();
+        } else {
+          result = detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history,
+                                           *history_index.value().index,
+                                           *current_index.value().index);
+          index_share_s =
+              history_index.value().build_share_s + current_index.value().build_share_s;
+        }
+      } else {
+        result = detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history);
+      }
       cpu_times.push_back(static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC);
       if (!result.ok()) {
         std::fprintf(stderr, "pair %zu/%zu: %s\n", h, c, result.status().message().c_str());
         continue;
       }
+      result.value().time_s += index_share_s;
+      result.value().stage.index_s += index_share_s;
       times.push_back(result.value().time_s);
+      const core::DynamicDetectionResult::StageTimes& st = result.value().stage;
+      const double stage_values[kStages] = {st.index_s,   st.ground_s,  st.common_s, st.rays_s,
+                                            st.dynamic_s, st.changed_s, st.mending_s};
+      for (int k = 0; k < kStages; ++k) stage_times[k].push_back(stage_values[k]);
       for (const auto& object : result.value().examined_objects) {
         examined.push_back({object, object.side == 0 ? h : c});
       }
@@ -654,6 +697,11 @@ int main(int argc, char** argv) {
                 Median(times), max_time, times.size(), Median(cpu_times),
                 cpu_times.empty() ? 0.0 : *std::max_element(cpu_times.begin(), cpu_times.end()),
                 mending);
+    std::printf("    median per step [ms]:");
+    for (int k = 0; k < kStages; ++k) {
+      std::printf(" %s %.1f", kStageNames[k], 1e3 * Median(stage_times[k]));
+    }
+    std::printf("\n");
     char buffer[1024];
     std::snprintf(buffer, sizeof(buffer),
                   "%s\"height_guard_%s\": {\"low_dynamic_da\": %.5f, \"low_dynamic_points\": %ld, "
