@@ -45,6 +45,9 @@ struct Side {
   std::vector<std::uint8_t> common;
   std::vector<std::uint8_t> far;  // beyond max_range_m of the other session (the far band)
   std::vector<float> nearest_other_m;  // distance to the nearest point of the other submap
+  // No seed of the common parts can lie within grow_radius_m (see FindCommonParts): the
+  // growth need not search around the point for one.
+  std::vector<std::uint8_t> no_seed_near;
   std::vector<float> height_m;         // above the local ground
   // Lazily computed normals: 0 unknown, 1 planar, 2 none.
   std::vector<std::uint8_t> normal_state;
@@ -179,8 +182,17 @@ class PairDetection {
       side.nearest_other_m.assign(n, std::numeric_limits<float>::infinity());
       side.normal_state.assign(n, 0);
       side.normals.assign(n, Eigen::Vector3f::Zero());
-      // Distances beyond this are only compared against smaller thresholds: stay "far".
-      const double reach = std::max(config_.seed_distance_m, config_.mending_distance_m);
+      side.no_seed_near.assign(n, 0);
+      // A seed within grow_radius_m of a point has a point of the other submap within
+      // seed_distance_m, so the point has one within their sum (the triangle inequality):
+      // searched that far, a point without one has no seed near it, unless it lies within
+      // grow_radius_m of the out-of-range points (seeds without the other's point), which
+      // `inner` rules out. Distances beyond the reach are only compared against smaller
+      // thresholds: they stay "far".
+      const double seed_reach = config_.seed_distance_m + config_.grow_radius_m + 1e-6;  // + rounding
+      const double reach =
+          std::max({config_.seed_distance_m, config_.mending_distance_m, seed_reach});
+      const double inner = config_.max_range_m - config_.grow_radius_m;
       // Points out of the other session's range are not examined: marked common (never
       // dynamic, no queries) and close to the other (never mended). Points of the far band
       // are examined, under the conditions of DetectDynamic and Mending.
@@ -201,9 +213,14 @@ class PairDetection {
         }
         std::uint32_t j = 0;
         double d2 = 0.0;
-        if (other.NearestWithin(side.points[i], reach, &j, &d2)) {
+        const bool found = other.NearestWithin(side.points[i], reach, &j, &d2);
+        if (found) {
           side.nearest_other_m[i] = static_cast<float>(std::sqrt(d2));
           side.common[i] = d2 <= config_.seed_distance_m * config_.seed_distance_m ? 1 : 0;
+        }
+        if ((!found || d2 > seed_reach * seed_reach) && inner > 0.0 &&
+            NearAny(sides_[1 - s].origins, side.points[i], inner * inner)) {
+          side.no_seed_near[i] = 1;
         }
       }
       GrowCommon(s);
@@ -658,7 +675,7 @@ class PairDetection {
     std::vector<std::uint32_t> neighbours;
     std::deque<std::uint32_t> queue;
     for (std::size_t i = 0; i < side.points.size(); ++i) {
-      if (side.common[i]) continue;
+      if (side.common[i] || side.no_seed_near[i]) continue;
       indices_[s]->Radius(side.points[i], config_.grow_radius_m, &neighbours);
       for (std::uint32_t j : neighbours) {
         if (side.common[j] == 1 && Compatible(s, static_cast<std::uint32_t>(i), j)) {
