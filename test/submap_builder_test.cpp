@@ -197,6 +197,43 @@ TEST(SubmapBuilder, SplitsOnTranslationAndRotationThresholds) {
   EXPECT_EQ(submaps[1].scans.size(), 21u);
 }
 
+// A scan that the odometry put far from its prediction (a jump) ends the open submaps and
+// starts a new one at that scan, with the dynamic filter's tails still open; a smaller
+// deviation does not, nor does any deviation with the rule off.
+TEST(SubmapBuilder, AJumpOfTheOdometryStartsANewSubmap) {
+  for (const double break_m : {0.6, 0.0}) {
+    SubmapBuilderConfig config;
+    config.break_on_jump_m = break_m;
+    StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s01");
+    ASSERT_TRUE(builder.ok());
+    LidarScan empty;
+    // 10 scans 0.5 m apart; scan 4 deviates 0.5 m from its prediction, scan 7 0.9 m.
+    for (int i = 0; i < 10; ++i) {
+      empty.stamp_s = i;
+      const double jump_m = i == 4 ? 0.5 : i == 7 ? 0.9 : 0.01;
+      builder.value().AddScan(empty, se3::FromXyzRpy(0.5 * i, 0, 0, 0, 0, 0), jump_m);
+      if (i == 7 && break_m > 0.0) {
+        // The submap before the jump is final at once (its tail is not left open).
+        EXPECT_EQ(builder.value().TakeFinished().size(), 1u);
+      }
+    }
+    builder.value().FinishSession();
+    std::vector<Submap, Eigen::aligned_allocator<Submap>> submaps = builder.value().TakeFinished();
+    if (break_m > 0.0) {
+      ASSERT_EQ(submaps.size(), 1u);  // the one after the jump (the first was taken above)
+      EXPECT_EQ(submaps[0].id, 1u);
+      ASSERT_EQ(submaps[0].scans.size(), 3u);  // scans 7, 8, 9
+      EXPECT_DOUBLE_EQ(submaps[0].scans.front().stamp_s, 7.0);
+      EXPECT_NEAR(submaps[0].T_map_submap.translation().x(), 3.5, 1e-12);
+      EXPECT_EQ(builder.value().stats().jump_breaks, 1u);
+    } else {
+      ASSERT_EQ(submaps.size(), 1u);
+      EXPECT_EQ(submaps[0].scans.size(), 10u);
+      EXPECT_EQ(builder.value().stats().jump_breaks, 0u);
+    }
+  }
+}
+
 TEST(SubmapBuilder, ConfigValidation) {
   SubmapBuilderConfig config;
   EXPECT_TRUE(config.Validate().ok());
@@ -210,6 +247,9 @@ TEST(SubmapBuilder, ConfigValidation) {
   EXPECT_FALSE(config.Validate().ok());
   config = SubmapBuilderConfig();
   config.dynamic_filter.grow_max_scan_gap = -1;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SubmapBuilderConfig();
+  config.break_on_jump_m = -0.1;
   EXPECT_FALSE(config.Validate().ok());
   EXPECT_FALSE(SubmapBuilder::Create(SubmapBuilderConfig(), "").ok());
 }

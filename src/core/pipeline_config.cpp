@@ -54,6 +54,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"submap", "max_rotation_rad", &s.submaps.max_rotation_rad},
       {"submap", "voxel_size_m", &s.submaps.voxel_size_m},
       {"submap", "max_point_range_m", &s.submaps.max_point_range_m},
+      {"submap", "break_on_jump_m", &s.submaps.break_on_jump_m},
       {"in_session_dynamics", "enabled", &d.enabled},
       {"in_session_dynamics", "margin_base_m", &d.margin_base_m},
       {"in_session_dynamics", "margin_per_m", &d.margin_per_m},

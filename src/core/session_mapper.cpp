@@ -240,7 +240,11 @@ struct SessionMapper::State {
     ++processed;
     timings.odometry_ms.push_back(result.timing.total_ms);
     const auto start = std::chrono::steady_clock::now();
-    builder.AddScan(result.deskewed_scan, result.pose);
+    // How far the odometry moved the scan from its prediction (a jump, see break_on_jump_m).
+    const double jump_m = result.registered && processed > 1
+                              ? se3::TranslationNorm(se3::Between(result.prediction, result.pose))
+                              : 0.0;
+    builder.AddScan(result.deskewed_scan, result.pose, jump_m);
     if (processed == 1) first_submap = builder.current_submap_id();
     timings.submap_building_ms.push_back(SecondsSince(start) * 1e3);
     last = std::move(result);

@@ -37,6 +37,9 @@ Status SubmapBuilderConfig::Validate() const {
   if (!(max_rotation_rad > 0.0) || !std::isfinite(max_rotation_rad)) {
     return Status::Error("submap.max_rotation_rad must be > 0");
   }
+  if (!(break_on_jump_m >= 0.0) || !std::isfinite(break_on_jump_m)) {
+    return Status::Error("submap.break_on_jump_m must be >= 0 (0: off)");
+  }
   if (!(voxel_size_m >= 0.01) || !std::isfinite(voxel_size_m)) {
     return Status::Error("submap.voxel_size_m must be >= 0.01");
   }
@@ -90,14 +93,25 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
   }
 }
 
-void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_sensor) {
+void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_sensor,
+                            double jump_m) {
   ++stats_.scans;
   const double step_m =
       has_last_pose_ ? (T_odom_sensor.translation() - last_pose_.translation()).norm() : 0.0;
   has_last_pose_ = true;
   last_pose_ = T_odom_sensor;
 
-  // Submap splitting on motion from the current origin.
+  // Submap splitting on motion from the current origin, or at a jump of the odometry: the
+  // open submaps end before it (their tails are not checked against scans that do not fit
+  // them).
+  const bool jump = config_.break_on_jump_m > 0.0 && jump_m > config_.break_on_jump_m;
+  if (jump && !open_.empty()) {
+    ++stats_.jump_breaks;
+    for (OpenSubmap& open : open_) {
+      Finalize(&open);
+    }
+    open_.clear();
+  }
   if (open_.empty() || open_.back().full) {
     StartSubmap(T_odom_sensor);
   } else {

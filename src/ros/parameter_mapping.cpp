@@ -21,6 +21,7 @@ namespace ros_params {
   F(submap_max_rotation_rad, s.submaps.max_rotation_rad)                                    \
   F(submap_voxel_size_m, s.submaps.voxel_size_m)                                            \
   F(submap_max_point_range_m, s.submaps.max_point_range_m)                                  \
+  F(submap_break_on_jump_m, s.submaps.break_on_jump_m)                                      \
   F(in_session_dynamics_enabled, s.submaps.dynamic_filter.enabled)                          \
   F(in_session_dynamics_margin_base_m, s.submaps.dynamic_filter.margin_base_m)              \
   F(in_session_dynamics_margin_per_m, s.submaps.dynamic_filter.margin_per_m)                \
