@@ -879,39 +879,6 @@ StatusOr<DynamicDetector> DynamicDetector::Create(const DynamicDetectionConfig& 
   return DynamicDetector(config);
 }
 
-StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
-                                                         const Submap& current,
-                                                         const Pose3& T_current_history) const {
-  const auto start = std::chrono::steady_clock::now();
-  StatusOr<PointIndex> current_index = PointIndex::Create(current.points);
-  if (!current_index.ok()) return current_index.status();
-  const double index_s = SecondsSince(start);
-  StatusOr<DynamicDetectionResult> result =
-      Detect(history, current, T_current_history, current_index.value());
-  if (result.ok()) {
-    result.value().time_s = SecondsSince(start);
-    result.value().stage.index_s += index_s;
-  }
-  return result;
-}
-
-StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
-                                                         const Submap& current,
-                                                         const Pose3& T_current_history,
-                                                         const PointIndex& current_index) const {
-  const auto start = std::chrono::steady_clock::now();
-  StatusOr<PointIndex> history_index = PointIndex::Create(history.points);
-  if (!history_index.ok()) return history_index.status();
-  const double index_s = SecondsSince(start);
-  StatusOr<DynamicDetectionResult> result =
-      Detect(history, current, T_current_history, history_index.value(), current_index);
-  if (result.ok()) {
-    result.value().time_s = SecondsSince(start);
-    result.value().stage.index_s += index_s;
-  }
-  return result;
-}
-
 namespace {
 
 // An error unless `index` was built over the points of `submap`.
@@ -922,7 +889,40 @@ Status CheckIndexSize(const Submap& submap, const PointIndex& index) {
                        " points, the submap " + std::to_string(submap.points.size()));
 }
 
+// Builds an index over `points` and runs `detect` with it; the index's construction counts in
+// the result's time_s and stage.index_s.
+template <typename DetectWith>
+StatusOr<DynamicDetectionResult> WithBuiltIndex(const PointVector& points, DetectWith detect) {
+  const auto start = std::chrono::steady_clock::now();
+  StatusOr<PointIndex> index = PointIndex::Create(points);
+  if (!index.ok()) return index.status();
+  const double index_s = SecondsSince(start);
+  StatusOr<DynamicDetectionResult> result = detect(index.value());
+  if (result.ok()) {
+    result.value().time_s = SecondsSince(start);
+    result.value().stage.index_s += index_s;
+  }
+  return result;
+}
+
 }  // namespace
+
+StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
+                                                         const Submap& current,
+                                                         const Pose3& T_current_history) const {
+  return WithBuiltIndex(current.points, [&](const PointIndex& current_index) {
+    return Detect(history, current, T_current_history, current_index);
+  });
+}
+
+StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
+                                                         const Submap& current,
+                                                         const Pose3& T_current_history,
+                                                         const PointIndex& current_index) const {
+  return WithBuiltIndex(history.points, [&](const PointIndex& history_index) {
+    return Detect(history, current, T_current_history, history_index, current_index);
+  });
+}
 
 StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
                                                          const Submap& current,
