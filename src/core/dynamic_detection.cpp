@@ -879,6 +879,29 @@ StatusOr<DynamicDetector> DynamicDetector::Create(const DynamicDetectionConfig& 
   return DynamicDetector(config);
 }
 
+StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
+                                                         const Submap& current,
+                                                         const Pose3& T_current_history,
+                                                         PointIndexPool* history_indices,
+                                                         std::size_t h,
+                                                         PointIndexPool* current_indices,
+                                                         std::size_t k) const {
+  StatusOr<PointIndexPool::Lease> history_index = history_indices->Acquire(h);
+  StatusOr<PointIndexPool::Lease> current_index = current_indices->Acquire(k);
+  if (!history_index.ok()) return history_index.status();
+  if (!current_index.ok()) return current_index.status();
+  StatusOr<DynamicDetectionResult> result =
+      Detect(history, current, T_current_history, *history_index.value().index,
+             *current_index.value().index);
+  if (result.ok()) {
+    const double share_s =
+        history_index.value().build_share_s + current_index.value().build_share_s;
+    result.value().time_s += share_s;
+    result.value().stage.index_s += share_s;
+  }
+  return result;
+}
+
 namespace {
 
 // An error unless `index` was built over the points of `submap`.

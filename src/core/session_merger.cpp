@@ -427,40 +427,30 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
                                                            Status::Error("not run"));
   auto pose_of_history = [&](std::size_t h) { return graph.NodePose(history_node(h)); };
   auto pose_of_current = [&](std::size_t c) { return graph.NodePose(current_node(c)); };
-  // The pairs of one current submap share its neighbour index (built once, in its own frame,
-  // which is the frame of the detection); the pairs of one history submap share its index too,
-  // in the history submap's own frame, from a pool that frees it after its last pair.
+  // The pairs of one submap share its neighbour index, built once in the submap's own frame
+  // and freed after its last pair (PointIndexPool); each pair is charged its shares.
   std::vector<std::vector<std::size_t>> pairs_of_current(session.submaps.size());
-  std::vector<int> pairs_of_history(map->submaps.size(), 0);
+  std::vector<int> uses_of_history(map->submaps.size(), 0);
+  std::vector<int> uses_of_current(session.submaps.size(), 0);
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     pairs_of_current[pairs[i].current].push_back(i);
-    ++pairs_of_history[pairs[i].history];
+    ++uses_of_history[pairs[i].history];
+    ++uses_of_current[pairs[i].current];
   }
   PointIndexPool history_indices(
-      std::move(pairs_of_history),
+      std::move(uses_of_history),
       [&](std::size_t h) -> const PointVector& { return map->submaps[h].points; });
+  PointIndexPool current_indices(
+      std::move(uses_of_current),
+      [&](std::size_t c) -> const PointVector& { return session.submaps[c].points; });
   ParallelFor(session.submaps.size(), config_.num_threads, [&](std::size_t c) {
-    const std::vector<std::size_t>& members = pairs_of_current[c];
-    if (members.empty()) return;
-    const Submap& cs = session.submaps[c];
-    const auto index_start = std::chrono::steady_clock::now();
-    StatusOr<PointIndex> index = PointIndex::Create(cs.points);
-    // Each pair's time includes its shares of the indices.
-    const double index_share_s = SecondsSince(index_start) / static_cast<double>(members.size());
-    for (std::size_t i : members) {
+    for (std::size_t i : pairs_of_current[c]) {
       const Pair& p = pairs[i];
-      StatusOr<PointIndexPool::Lease> history_index = history_indices.Acquire(p.history);
-      if (!index.ok() || !history_index.ok()) {
-        detections[i] = !index.ok() ? index.status() : history_index.status();
-        continue;
-      }
       const Pose3 T_current_history =
           pose_of_current(p.current).inverse() * pose_of_history(p.history);
-      detections[i] = detector.value().Detect(map->submaps[p.history], cs, T_current_history,
-                                              *history_index.value().index, index.value());
-      if (detections[i].ok()) {
-        detections[i].value().time_s += index_share_s + history_index.value().build_share_s;
-      }
+      detections[i] =
+          detector.value().Detect(map->submaps[p.history], session.submaps[c], T_current_history,
+                                  &history_indices, p.history, &current_indices, c);
     }
   });
   std::map<std::size_t, std::set<std::uint32_t>> removed;  // history index -> point indices

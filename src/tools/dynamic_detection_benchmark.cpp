@@ -460,10 +460,8 @@ int main(int argc, char** argv) {
     }
     std::vector<double> times, cpu_times;
     // Per step of the detection (DynamicDetectionResult::StageTimes), in its order.
-    const char* const kStageNames[] = {"index", "ground", "common", "rays", "dynamic", "changed",
-                                       "mending"};
-    constexpr int kStages = 7;
-    std::vector<double> stage_times[kStages];
+    using StageTimes = core::DynamicDetectionResult::StageTimes;
+    std::vector<double> stage_times[StageTimes::kCount];
     std::size_t mending = 0;
     struct Examined {
       core::DynamicDetectionResult::ExaminedObject object;
@@ -485,35 +483,19 @@ int main(int argc, char** argv) {
     for (const auto& [h, c] : pairs) {
       const Eigen::Isometry3d T_current_history = C.T_world_submap[c].inverse() * H.T_world_submap[h];
       const std::clock_t cpu_start = std::clock();
-      core::StatusOr<core::DynamicDetectionResult> result(core::Status::Error("not run"));
-      double index_share_s = 0.0;
-      if (shared_indices) {
-        core::StatusOr<core::PointIndexPool::Lease> history_index = history_indices.Acquire(h);
-        core::StatusOr<core::PointIndexPool::Lease> current_index = current_indices.Acquire(c);
-        if (!history_index.ok() || !current_index.ok()) {
-          result = !history_index.ok() ? history_index.status() : current_index.status();
-        } else {
-          result = detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history,
-                                           *history_index.value().index,
-                                           *current_index.value().index);
-          index_share_s =
-              history_index.value().build_share_s + current_index.value().build_share_s;
-        }
-      } else {
-        result = detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history);
-      }
+      core::StatusOr<core::DynamicDetectionResult> result =
+          shared_indices
+              ? detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history,
+                                        &history_indices, h, &current_indices, c)
+              : detector.value().Detect(H.submaps[h], C.submaps[c], T_current_history);
       cpu_times.push_back(static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC);
       if (!result.ok()) {
         std::fprintf(stderr, "pair %zu/%zu: %s\n", h, c, result.status().message().c_str());
         continue;
       }
-      result.value().time_s += index_share_s;
-      result.value().stage.index_s += index_share_s;
       times.push_back(result.value().time_s);
-      const core::DynamicDetectionResult::StageTimes& st = result.value().stage;
-      const double stage_values[kStages] = {st.index_s,   st.ground_s,  st.common_s, st.rays_s,
-                                            st.dynamic_s, st.changed_s, st.mending_s};
-      for (int k = 0; k < kStages; ++k) stage_times[k].push_back(stage_values[k]);
+      const auto steps = result.value().stage.Named();
+      for (int k = 0; k < StageTimes::kCount; ++k) stage_times[k].push_back(steps[k].second);
       for (const auto& object : result.value().examined_objects) {
         examined.push_back({object, object.side == 0 ? h : c});
       }
@@ -698,8 +680,9 @@ int main(int argc, char** argv) {
                 cpu_times.empty() ? 0.0 : *std::max_element(cpu_times.begin(), cpu_times.end()),
                 mending);
     std::printf("    median per step [ms]:");
-    for (int k = 0; k < kStages; ++k) {
-      std::printf(" %s %.1f", kStageNames[k], 1e3 * Median(stage_times[k]));
+    const auto names = StageTimes().Named();
+    for (int k = 0; k < StageTimes::kCount; ++k) {
+      std::printf(" %s %.1f", names[k].first, 1e3 * Median(stage_times[k]));
     }
     std::printf("\n");
     char buffer[1024];

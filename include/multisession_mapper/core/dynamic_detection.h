@@ -59,10 +59,13 @@
 //    seen by both sessions' rays at grazing angles) and no support.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "multisession_mapper/core/point_index.h"
+#include "multisession_mapper/core/point_index_pool.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/submap.h"
 #include "multisession_mapper/core/types.h"
@@ -243,6 +246,18 @@ struct DynamicDetectionResult {
     double dynamic_s = 0.0;
     double changed_s = 0.0;
     double mending_s = 0.0;
+    static constexpr int kCount = 7;
+    /// The steps in their order, with their names (index, ground, common, rays, dynamic,
+    /// changed, mending).
+    std::array<std::pair<const char*, double>, kCount> Named() const {
+      return {{{"index", index_s},
+               {"ground", ground_s},
+               {"common", common_s},
+               {"rays", rays_s},
+               {"dynamic", dynamic_s},
+               {"changed", changed_s},
+               {"mending", mending_s}}};
+    }
   };
   StageTimes stage;
 };
@@ -270,6 +285,13 @@ class DynamicDetector {
                                           const Pose3& T_current_history,
                                           const PointIndex& history_index,
                                           const PointIndex& current_index) const;
+  /// The same with the indices of history item `h` and current item `k` of two pools (one
+  /// use of each); `time_s` and `stage.index_s` include this pair's shares of their
+  /// construction (how the merge and the benchmark charge shared indices).
+  StatusOr<DynamicDetectionResult> Detect(const Submap& history, const Submap& current,
+                                          const Pose3& T_current_history,
+                                          PointIndexPool* history_indices, std::size_t h,
+                                          PointIndexPool* current_indices, std::size_t k) const;
 
   const DynamicDetectionConfig& config() const { return config_; }
 
