@@ -114,6 +114,31 @@ TEST_F(SyntheticPairTest, RecoversLargeYawAndOffsetWithoutGuess) {
   EXPECT_NEAR(r.information(0, 0), 1.0 / (0.1 * 0.1), 1e-6);
 }
 
+TEST_F(SyntheticPairTest, ExactFeatureMatchingFindsTheSamePose) {
+  // The default matches features approximately (feature_match_epsilon); exact matching must
+  // reach the same pose, and the steps' times account for the registration's.
+  GlobalRegistrationConfig exact_config;
+  exact_config.feature_match_epsilon = 0.0;
+  const GlobalRegistration exact = GlobalRegistration::Create(exact_config).value();
+  const GlobalRegistration approximate =
+      GlobalRegistration::Create(GlobalRegistrationConfig()).value();
+  const GlobalRegistrationResult a = exact.Register(source_, target_);
+  const GlobalRegistrationResult b = approximate.Register(source_, target_);
+  ASSERT_TRUE(a.accepted) << a.reason;
+  ASSERT_TRUE(b.accepted) << b.reason;
+  const Pose3 between = se3::Between(a.T_target_source, b.T_target_source);
+  EXPECT_LT(se3::TranslationNorm(between), 0.01);
+  EXPECT_LT(se3::RotationAngleRad(between), 0.05 * kDeg);
+  for (const GlobalRegistrationResult* r : {&a, &b}) {
+    EXPECT_GT(r->prepare_s, 0.0);
+    EXPECT_GT(r->matching_s, 0.0);
+    EXPECT_GT(r->fine_s, 0.0);
+    const double steps = r->prepare_s + r->matching_s + r->hypotheses_s + r->fine_s;
+    EXPECT_LE(steps, r->time_s + 1e-6);
+    EXPECT_GT(steps, 0.9 * r->time_s);
+  }
+}
+
 TEST_F(SyntheticPairTest, RecoversTheSameTransformInReverse) {
   const GlobalRegistration registration =
       GlobalRegistration::Create(GlobalRegistrationConfig()).value();
@@ -186,6 +211,9 @@ TEST(GlobalRegistrationConfigTest, ValidatesFields) {
   EXPECT_FALSE(c.Validate().ok());
   c = GlobalRegistrationConfig();
   c.min_ransac_inliers = 2;
+  EXPECT_FALSE(c.Validate().ok());
+  c = GlobalRegistrationConfig();
+  c.feature_match_epsilon = -0.5;
   EXPECT_FALSE(c.Validate().ok());
   c = GlobalRegistrationConfig();
   c.fine.min_overlap_ratio = 2.0;

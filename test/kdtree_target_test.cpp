@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -112,6 +113,45 @@ TEST(KdTreeTargetTest, WallPointsGetWallNormals) {
   ASSERT_TRUE(target.FindMatch(Eigen::Vector3d(3.7, 0.05, 1.0), 1.0, &match));
   ASSERT_TRUE(match.has_normal);
   EXPECT_GT(std::abs(match.normal.x()), 0.999);
+}
+
+TEST(KdTreeTargetTest, NormalsFittedOnFirstUseAreTheSameFromConcurrentQueries) {
+  // Normals are fitted when a point is first matched. Two threads matching the same points in
+  // opposite orders (each fits some first, some are fitted by the other) must get the normals
+  // of a target whose normals were all fitted up front.
+  std::mt19937 rng(9);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  PointVector pts;
+  for (double x = -6.0; x <= 6.0; x += 0.25) {
+    for (double y = -6.0; y <= 6.0; y += 0.25) pts.emplace_back(x, y, noise(rng));  // ground
+    for (double z = 0.0; z <= 3.0; z += 0.25) pts.emplace_back(x, 6.5 + noise(rng), z);  // wall
+  }
+  const KdTreeTarget lazy = KdTreeTarget::Create(pts).value();
+  const KdTreeTarget eager = KdTreeTarget::Create(pts).value();
+  ASSERT_GT(eager.PlanarFraction(), 0.9);  // fits every normal
+  std::vector<TargetMatch> forward(pts.size()), backward(pts.size());
+  std::vector<std::uint8_t> ok_forward(pts.size()), ok_backward(pts.size());
+  std::thread a([&] {
+    for (std::size_t i = 0; i < pts.size(); ++i) ok_forward[i] = lazy.FindMatch(pts[i], 0.1, &forward[i]);
+  });
+  std::thread b([&] {
+    for (std::size_t i = pts.size(); i-- > 0;) ok_backward[i] = lazy.FindMatch(pts[i], 0.1, &backward[i]);
+  });
+  a.join();
+  b.join();
+  int with_normal = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    TargetMatch expected;
+    ASSERT_TRUE(eager.FindMatch(pts[i], 0.1, &expected));
+    ASSERT_TRUE(ok_forward[i] && ok_backward[i]);
+    for (const TargetMatch* m : {&forward[i], &backward[i]}) {
+      ASSERT_EQ(m->has_normal, expected.has_normal) << "point " << i;
+      EXPECT_EQ(m->normal, expected.normal) << "point " << i;
+    }
+    with_normal += expected.has_normal ? 1 : 0;
+  }
+  EXPECT_GT(with_normal, static_cast<int>(pts.size() * 9 / 10));
+  EXPECT_DOUBLE_EQ(lazy.PlanarFraction(), eager.PlanarFraction());
 }
 
 TEST(KdTreeTargetTest, RejectsEmptyAndNonFiniteInput) {

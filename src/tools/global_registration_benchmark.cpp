@@ -1,7 +1,8 @@
 // global_registration_benchmark: accuracy and time per pair of GlobalRegistration (issue 6) on
 // the submaps of a stored map. Not part of the pipeline and not a test.
 //   global_registration_benchmark --map DIR [--method fpfh_ransac|yaw_search_icp|both]
-//       [--max-distance M] [--max-pairs N]
+//       [--max-distance M] [--max-pairs N] [--coarse-voxel M] [--coarse-range M]
+//       [--feature-radius M] [--feature-epsilon E]
 // Pairs: submaps of the map whose origins are within --max-distance (overlapping) and, for the
 // rejection check, the same pairs with the target mirrored (a place that does not exist). Each source submap
 // is first moved by a large known transform (yaw 90-180 deg, 15-30 m, fixed seed), so the
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
@@ -28,7 +30,11 @@ const char kUsage[] =
     "usage: global_registration_benchmark --map DIR [options]\n"
     "  --method M        fpfh_ransac | yaw_search_icp | both (default both)\n"
     "  --max-distance M  overlapping pairs: origins within this distance [m] (15)\n"
-    "  --max-pairs N     at most N overlapping and N non-overlapping pairs (20)\n";
+    "  --max-pairs N     at most N overlapping and N non-overlapping pairs (20)\n"
+    "  --coarse-voxel M  GlobalRegistrationConfig::coarse_voxel_m (its default)\n"
+    "  --coarse-range M  GlobalRegistrationConfig::coarse_max_range_m (its default)\n"
+    "  --feature-radius M  GlobalRegistrationConfig::feature_radius_m (its default)\n"
+    "  --feature-epsilon E GlobalRegistrationConfig::feature_match_epsilon (its default)\n";
 
 double Median(std::vector<double> v) {
   if (v.empty()) return NAN;
@@ -36,12 +42,32 @@ double Median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+// The steps of GlobalRegistrationResult, one sample per pair.
+struct StageMedians {
+  std::vector<double> prepare, matching, hypotheses, fine;
+  void Add(const core::GlobalRegistrationResult& r) {
+    prepare.push_back(r.prepare_s);
+    matching.push_back(r.matching_s);
+    hypotheses.push_back(r.hypotheses_s);
+    fine.push_back(r.fine_s);
+  }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string map_dir, method = "both";
   double max_distance_m = 15.0;
   long long max_pairs = 20;
+  const core::GlobalRegistrationConfig defaults;
+  double coarse_voxel_m = defaults.coarse_voxel_m;
+  double coarse_range_m = defaults.coarse_max_range_m;
+  double feature_radius_m = defaults.feature_radius_m;
+  double feature_epsilon = defaults.feature_match_epsilon;
+  const std::map<std::string, double*> double_options = {
+      {"--max-distance", &max_distance_m},   {"--coarse-voxel", &coarse_voxel_m},
+      {"--coarse-range", &coarse_range_m},   {"--feature-radius", &feature_radius_m},
+      {"--feature-epsilon", &feature_epsilon}};
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const bool has_value = i + 1 < argc;
@@ -49,9 +75,9 @@ int main(int argc, char** argv) {
       map_dir = argv[++i];
     } else if (arg == "--method" && has_value) {
       method = argv[++i];
-    } else if (arg == "--max-distance" && has_value) {
-      if (!multisession_mapper::tools::ParseDouble(argv[++i], &max_distance_m)) {
-        std::fprintf(stderr, "bad --max-distance\n%s", kUsage);
+    } else if (double_options.count(arg) > 0 && has_value) {
+      if (!multisession_mapper::tools::ParseDouble(argv[++i], double_options.at(arg))) {
+        std::fprintf(stderr, "bad %s\n%s", arg.c_str(), kUsage);
         return 2;
       }
     } else if (arg == "--max-pairs" && has_value) {
@@ -99,11 +125,21 @@ int main(int argc, char** argv) {
   for (core::GlobalRegistrationConfig::Method m : methods) {
     core::GlobalRegistrationConfig config;
     config.method = m;
-    const core::GlobalRegistration registration = core::GlobalRegistration::Create(config).value();
+    config.coarse_voxel_m = coarse_voxel_m;
+    config.coarse_max_range_m = coarse_range_m;
+    config.feature_radius_m = feature_radius_m;
+    config.feature_match_epsilon = feature_epsilon;
+    const core::StatusOr<core::GlobalRegistration> created = core::GlobalRegistration::Create(config);
+    if (!created.ok()) {
+      std::fprintf(stderr, "%s\n", created.status().message().c_str());
+      return 2;
+    }
+    const core::GlobalRegistration& registration = created.value();
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> yaw(M_PI / 2.0, M_PI), dist(15.0, 30.0),
         dir(-M_PI, M_PI);
     std::vector<double> err_m, err_deg, times, coarse_times, cpu_times;
+    StageMedians stages;  // overlapping pairs
     int accepted = 0, wrong = 0, far_accepted = 0;
     for (const auto& [s, t] : near) {
       const double a = dir(rng), r = dist(rng);
@@ -118,6 +154,7 @@ int main(int argc, char** argv) {
       cpu_times.push_back(static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC);
       times.push_back(result.time_s);
       coarse_times.push_back(result.coarse_time_s);
+      stages.Add(result);
       const core::Pose3 reference = core::se3::Between(submaps[t].T_map_submap, submaps[s].T_map_submap);
       const core::Pose3 error = core::se3::Between(reference, result.T_target_source * moved);
       const double em = core::se3::TranslationNorm(error);
@@ -166,6 +203,10 @@ int main(int argc, char** argv) {
                 times.empty() ? NAN : *std::max_element(times.begin(), times.end()),
                 Median(cpu_times),
                 cpu_times.empty() ? NAN : *std::max_element(cpu_times.begin(), cpu_times.end()));
+    std::printf("[%s] overlapping pairs, median per step [s]: preparing both submaps %.3f, "
+                "feature matching %.3f, hypotheses %.4f, fine %.3f\n",
+                core::GlobalRegistrationMethodName(m), Median(stages.prepare),
+                Median(stages.matching), Median(stages.hypotheses), Median(stages.fine));
   }
   return 0;
 }

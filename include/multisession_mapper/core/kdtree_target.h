@@ -1,7 +1,8 @@
 // Registration target over a fixed point set (a submap, a reference scan): a nanoflann kd-tree
-// for nearest neighbours plus normals precomputed from the k nearest neighbours (PCA, see
-// local_plane.h). Used by IcpRegistration for submap-to-submap and scan-to-submap alignment,
-// where the target does not change between queries. Const queries are thread-safe.
+// for nearest neighbours plus normals from the k nearest neighbours (PCA, see local_plane.h),
+// fitted when a point is first matched and kept. Used by IcpRegistration for submap-to-submap
+// and scan-to-submap alignment, where the target does not change between queries. Const
+// queries are thread-safe.
 #pragma once
 
 #include <cstddef>
@@ -32,7 +33,7 @@ struct KdTreeTargetConfig {
 
 class KdTreeTarget : public RegistrationTarget {
  public:
-  /// Builds the tree and the normals over `points` (copied). Fails on a bad config or when
+  /// Builds the tree over `points` (copied); normals are fitted when first matched. Fails on a bad config or when
   /// `points` is empty.
   static StatusOr<KdTreeTarget> Create(PointVector points,
                                        const KdTreeTargetConfig& config = KdTreeTargetConfig());
