@@ -214,7 +214,9 @@ TEST(SubmapBuilder, AJumpOfTheOdometryStartsANewSubmap) {
       builder.value().AddScan(empty, se3::FromXyzRpy(0.5 * i, 0, 0, 0, 0, 0), jump_m);
       if (i == 7 && break_m > 0.0) {
         // The submap before the jump is final at once (its tail is not left open).
-        EXPECT_EQ(builder.value().TakeFinished().size(), 1u);
+        const auto before = builder.value().TakeFinished();
+        ASSERT_EQ(before.size(), 1u);
+        EXPECT_EQ(before[0].started_at_jump_m, 0.0);
       }
     }
     builder.value().FinishSession();
@@ -225,10 +227,12 @@ TEST(SubmapBuilder, AJumpOfTheOdometryStartsANewSubmap) {
       ASSERT_EQ(submaps[0].scans.size(), 3u);  // scans 7, 8, 9
       EXPECT_DOUBLE_EQ(submaps[0].scans.front().stamp_s, 7.0);
       EXPECT_NEAR(submaps[0].T_map_submap.translation().x(), 3.5, 1e-12);
+      EXPECT_DOUBLE_EQ(submaps[0].started_at_jump_m, 0.9);  // widens its odometry link
       EXPECT_EQ(builder.value().stats().jump_breaks, 1u);
     } else {
       ASSERT_EQ(submaps.size(), 1u);
       EXPECT_EQ(submaps[0].scans.size(), 10u);
+      EXPECT_EQ(submaps[0].started_at_jump_m, 0.0);
       EXPECT_EQ(builder.value().stats().jump_breaks, 0u);
     }
   }

@@ -55,12 +55,13 @@ StatusOr<SubmapBuilder> SubmapBuilder::Create(const SubmapBuilderConfig& config,
   return SubmapBuilder(config, session);
 }
 
-void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor) {
+void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_jump_m) {
   if (!open_.empty()) open_.back().full = true;
   OpenSubmap open;
   open.submap.session = session_;
   open.submap.id = next_id_++;
   open.submap.T_map_submap = T_odom_sensor;
+  open.submap.started_at_jump_m = started_at_jump_m;
   open_.push_back(std::move(open));
 }
 
@@ -111,8 +112,8 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
       Finalize(&open);
     }
     open_.clear();
-  }
-  if (open_.empty() || open_.back().full) {
+    StartSubmap(T_odom_sensor, jump_m);
+  } else if (open_.empty() || open_.back().full) {
     StartSubmap(T_odom_sensor);
   } else {
     const Pose3 motion = se3::Between(open_.back().submap.T_map_submap, T_odom_sensor);

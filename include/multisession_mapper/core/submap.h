@@ -32,6 +32,10 @@ struct Submap {
   PointVector points;  ///< downsampled, dynamic-filtered points in the submap frame [m]
   SubmapState state = SubmapState::kActive;
   double length_m = 0.0;  ///< distance driven while the submap was built [m]
+  /// The odometry jump [m] at which the submap started (SubmapBuilderConfig::break_on_jump_m),
+  /// 0 when it started normally. Only while the session is built: the weak odometry edge to the
+  /// previous submap (SessionMapper) is what the map keeps of it.
+  double started_at_jump_m = 0.0;
 
   double first_stamp_s() const { return scans.empty() ? 0.0 : scans.front().stamp_s; }
   double last_stamp_s() const { return scans.empty() ? 0.0 : scans.back().stamp_s; }

@@ -75,7 +75,8 @@ struct SubmapBuilderConfig {
   /// [m] starts a new submap and ends the open ones, so that no submap holds a jump of the
   /// odometry: its points after the jump would be displaced from its origin, and every loop
   /// to it would carry the jump. The jump stays in the odometry link between the two
-  /// submaps, where loops can correct it. Measured on the `campus` sessions of seeds 1 and 2
+  /// submaps, where loops can correct it: SessionMapper widens that link's translation sigma
+  /// by the jump (Submap::started_at_jump_m). Measured on the `campus` sessions of seeds 1 and 2
   /// against a constant-velocity extrapolation: 0.72-0.89 m at three scans of seed 2 (sharp
   /// turns, where the ICP slid sideways and snapped back), at most 0.58 m anywhere else.
   /// 0: off.
@@ -139,7 +140,7 @@ class SubmapBuilder {
 
   SubmapBuilder(const SubmapBuilderConfig& config, const std::string& session)
       : config_(config), session_(session) {}
-  void StartSubmap(const Pose3& T_odom_sensor);
+  void StartSubmap(const Pose3& T_odom_sensor, double started_at_jump_m = 0.0);
   void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open);
   void Finalize(OpenSubmap* open);
 
