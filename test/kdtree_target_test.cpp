@@ -132,10 +132,14 @@ TEST(KdTreeTargetTest, NormalsFittedOnFirstUseAreTheSameFromConcurrentQueries) {
   std::vector<TargetMatch> forward(pts.size()), backward(pts.size());
   std::vector<std::uint8_t> ok_forward(pts.size()), ok_backward(pts.size());
   std::thread a([&] {
-    for (std::size_t i = 0; i < pts.size(); ++i) ok_forward[i] = lazy.FindMatch(pts[i], 0.1, &forward[i]);
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      ok_forward[i] = lazy.FindMatch(pts[i], 0.1, &forward[i]);
+    }
   });
   std::thread b([&] {
-    for (std::size_t i = pts.size(); i-- > 0;) ok_backward[i] = lazy.FindMatch(pts[i], 0.1, &backward[i]);
+    for (std::size_t i = pts.size(); i-- > 0;) {
+      ok_backward[i] = lazy.FindMatch(pts[i], 0.1, &backward[i]);
+    }
   });
   a.join();
   b.join();

@@ -42,7 +42,9 @@ struct KdTreeTarget::Impl {
         normals(points.size(), Eigen::Vector3d::Zero()),
         planar(points.size(), 0),
         state(new std::atomic<std::uint8_t>[points.size()]) {
-    for (std::size_t i = 0; i < points.size(); ++i) state[i].store(kUnknown, std::memory_order_relaxed);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      state[i].store(kUnknown, std::memory_order_relaxed);
+    }
     adaptor.points = &points;
     tree = std::make_unique<Tree>(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
     tree->buildIndex();
@@ -172,7 +174,9 @@ double KdTreeTarget::PlanarFraction() const {
   if (empty()) return 0.0;
   std::size_t n = 0;
   Eigen::Vector3d normal;
-  for (std::size_t i = 0; i < impl_->points.size(); ++i) n += impl_->NormalAt(i, &normal) ? 1 : 0;
+  for (std::size_t i = 0; i < impl_->points.size(); ++i) {
+    n += impl_->NormalAt(i, &normal) ? 1 : 0;
+  }
   return static_cast<double>(n) / static_cast<double>(impl_->points.size());
 }
 

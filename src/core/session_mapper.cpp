@@ -95,8 +95,9 @@ struct SessionMapper::State {
       // A submap started at a jump of the odometry (SubmapBuilderConfig::break_on_jump_m) is
       // linked to the previous one across that jump: the link is as uncertain as the jump is
       // large, so that loops on both sides of it can move the two apart or together.
-      const double sigma_odometry = config.odometry_sigma_translation_m +
-                                    config.odometry_sigma_translation_per_m * submaps.back().length_m;
+      const double sigma_odometry =
+          config.odometry_sigma_translation_m +
+          config.odometry_sigma_translation_per_m * submaps.back().length_m;
       const double sigma_t = std::hypot(sigma_odometry, submap.started_at_jump_m);
       edge.information.setZero();
       edge.information.diagonal() << Eigen::Vector3d::Constant(1.0 / (sigma_t * sigma_t)),

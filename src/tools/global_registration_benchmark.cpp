@@ -129,7 +129,8 @@ int main(int argc, char** argv) {
     config.coarse_max_range_m = coarse_range_m;
     config.feature_radius_m = feature_radius_m;
     config.feature_match_epsilon = feature_epsilon;
-    const core::StatusOr<core::GlobalRegistration> created = core::GlobalRegistration::Create(config);
+    const core::StatusOr<core::GlobalRegistration> created =
+        core::GlobalRegistration::Create(config);
     if (!created.ok()) {
       std::fprintf(stderr, "%s\n", created.status().message().c_str());
       return 2;

@@ -33,8 +33,8 @@ struct KdTreeTargetConfig {
 
 class KdTreeTarget : public RegistrationTarget {
  public:
-  /// Builds the tree over `points` (copied); normals are fitted when first matched. Fails on a bad config or when
-  /// `points` is empty.
+  /// Builds the tree over `points` (copied); normals are fitted when first matched. Fails on
+  /// a bad config or when `points` is empty.
   static StatusOr<KdTreeTarget> Create(PointVector points,
                                        const KdTreeTargetConfig& config = KdTreeTargetConfig());
   KdTreeTarget(KdTreeTarget&&) noexcept;
