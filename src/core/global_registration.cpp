@@ -116,9 +116,9 @@ class FeatureIndex {
 struct CoarseCloud {
   PointVector points;
   std::vector<Eigen::Vector3d> normals;  // unit; zero when the normal is undefined
-  pcl::PointCloud<pcl::FPFHSignature33>::Ptr features;
+  bool with_features = false;  // FPFH computed (valid / valid_features below)
   std::vector<int> valid;  // indices with a finite feature
-  std::shared_ptr<const FeatureIndex> valid_features;  // features[valid]; null when none
+  std::shared_ptr<const FeatureIndex> valid_features;  // their features; null when none
 };
 
 PointVector CropAndDownsample(const PointVector& points, double voxel_m, double max_range_m) {
@@ -161,15 +161,16 @@ CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationC
     }
   }
   if (!with_features) return cloud;
-  cloud.features.reset(new pcl::PointCloud<pcl::FPFHSignature33>);
+  cloud.with_features = true;
+  pcl::PointCloud<pcl::FPFHSignature33> features;
   pcl::FPFHEstimation<pcl::PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh;
   fpfh.setInputCloud(xyz);
   fpfh.setInputNormals(normals);
   fpfh.setSearchMethod(tree);
   fpfh.setRadiusSearch(config.feature_radius_m);
-  fpfh.compute(*cloud.features);
-  for (std::size_t i = 0; i < cloud.features->size(); ++i) {
-    const float* h = (*cloud.features)[i].histogram;
+  fpfh.compute(features);
+  for (std::size_t i = 0; i < features.size(); ++i) {
+    const float* h = features[i].histogram;
     bool finite = cloud.normals[i].squaredNorm() > 0.5;
     float sum = 0.0f;
     for (int b = 0; b < 33 && finite; ++b) {
@@ -182,7 +183,7 @@ CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationC
     std::vector<float> rows;
     rows.reserve(cloud.valid.size() * FeatureIndex::kDim);
     for (int i : cloud.valid) {
-      const float* h = (*cloud.features)[i].histogram;
+      const float* h = features[i].histogram;
       rows.insert(rows.end(), h, h + FeatureIndex::kDim);
     }
     cloud.valid_features = std::make_shared<const FeatureIndex>(std::move(rows));
@@ -532,7 +533,7 @@ GlobalRegistrationResult GlobalRegistration::Register(const PreparedSubmap& sour
   };
   if (!target_submap.fine_target) return finish("target not prepared as a target");
   const bool features = config_.method == GlobalRegistrationConfig::Method::kFpfhRansac;
-  if (features && (!source_submap.coarse.features || !target_submap.coarse.features)) {
+  if (features && (!source_submap.coarse.with_features || !target_submap.coarse.with_features)) {
     return finish("submap prepared without features");
   }
   const CoarseCloud& coarse_source = source_submap.coarse;
