@@ -22,6 +22,8 @@ struct SequenceErrors {
   double final_translation_m = 0.0;
   std::vector<double> total_ms;
   int registered = 0;
+  int turn_hypotheses_tried = 0;
+  int turn_hypotheses_won = 0;
 };
 
 // Drives the odometry along `trajectory` through a synthetic scene at 10 Hz and compares its
@@ -42,6 +44,8 @@ SequenceErrors RunSequence(const test::VehicleTrajectory& trajectory, bool with_
     EXPECT_TRUE(result.ok()) << result.status().message();
     if (!result.ok()) continue;
     errors.registered += result.value().registered ? 1 : 0;
+    errors.turn_hypotheses_tried += result.value().turn_hypotheses_tried ? 1 : 0;
+    errors.turn_hypotheses_won += result.value().turn_hypothesis_won ? 1 : 0;
     errors.total_ms.push_back(result.value().timing.total_ms);
     const Pose3 truth = se3::Between(T_w0, trajectory.PoseAt(stamp));
     const Pose3 error = se3::Between(truth, result.value().pose);
@@ -103,6 +107,7 @@ TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
   const SequenceErrors without = RunSequence(steps, true);
   OdometryConfig config;
   config.turn_hypothesis_step_rad_s = 0.4;
+  config.turn_hypothesis_window_scans = 10;  // the first step comes after 20 scans
   const SequenceErrors with = RunSequence(steps, true, config);
   std::cout << "yaw-rate steps: max error without hypotheses " << without.max_translation_m
             << " m, " << without.max_rotation_rad / kDeg << " deg; with "
@@ -112,6 +117,21 @@ TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
   EXPECT_LT(with.max_translation_m, 0.07);
   EXPECT_LT(with.max_rotation_rad, 0.4 * kDeg);
   EXPECT_LT(with.max_rotation_rad, 0.7 * without.max_rotation_rad);
+  EXPECT_EQ(without.turn_hypotheses_tried, 0);
+  EXPECT_GT(with.turn_hypotheses_won, 0);
+
+  // Tried only where the fit drops against the scans before: the same turns are followed
+  // with the hypotheses tried on a fraction of the scans.
+  config.turn_hypothesis_trigger = 0.95;
+  const SequenceErrors triggered = RunSequence(steps, true, config);
+  std::cout << "triggered at 0.95: tried on " << triggered.turn_hypotheses_tried << " of "
+            << triggered.total_ms.size() << " scans (every scan: " << with.turn_hypotheses_tried
+            << "), won " << triggered.turn_hypotheses_won << "; max error "
+            << triggered.max_translation_m << " m, " << triggered.max_rotation_rad / kDeg
+            << " deg" << std::endl;
+  EXPECT_GT(triggered.turn_hypotheses_won, 0);
+  EXPECT_LT(triggered.turn_hypotheses_tried, with.turn_hypotheses_tried / 2);
+  EXPECT_LT(triggered.max_rotation_rad, 0.7 * without.max_rotation_rad);
 }
 
 TEST(OdometryTest, TracksWithoutPerPointTime) {
@@ -146,6 +166,12 @@ TEST(OdometryTest, RejectsBadInputWithoutChangingState) {
   EXPECT_FALSE(Odometry::Create(bad).ok());
   bad = OdometryConfig();
   bad.local_map.voxel_size_m = -1.0;
+  EXPECT_FALSE(Odometry::Create(bad).ok());
+  bad = OdometryConfig();
+  bad.turn_hypothesis_trigger = -0.5;
+  EXPECT_FALSE(Odometry::Create(bad).ok());
+  bad = OdometryConfig();
+  bad.turn_hypothesis_window_scans = 0;
   EXPECT_FALSE(Odometry::Create(bad).ok());
 }
 

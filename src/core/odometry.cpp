@@ -1,5 +1,6 @@
 #include "multisession_mapper/core/odometry.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <string>
@@ -63,6 +64,11 @@ Status OdometryConfig::Validate() const {
       !std::isfinite(turn_hypothesis_margin) || turn_hypothesis_margin < 1.0) {
     return Status::Error(
         "odometry.turn_hypothesis_step_rad_s must be >= 0 and turn_hypothesis_margin >= 1");
+  }
+  if (!std::isfinite(turn_hypothesis_trigger) || turn_hypothesis_trigger < 0.0 ||
+      turn_hypothesis_window_scans < 1) {
+    return Status::Error(
+        "odometry.turn_hypothesis_trigger must be >= 0 and turn_hypothesis_window_scans >= 1");
   }
   if (velocity_window_scans < 1) {
     return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
@@ -203,9 +209,11 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     }
   }
 
-  if (result.registered && continuous && dt > 0.0 && config_.turn_hypothesis_step_rad_s > 0.0) {
+  if (result.registered && continuous && dt > 0.0 && config_.turn_hypothesis_step_rad_s > 0.0 &&
+      TurnHypothesesTriggered(result.icp.mean_weight)) {
     // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
     // one scan leaves the prediction (and its de-skew) a whole step off.
+    result.turn_hypotheses_tried = true;
     const double step = config_.turn_hypothesis_step_rad_s;
     const double predicted_rate = velocity(5);
     std::vector<double> rates = {predicted_rate - step, predicted_rate + step};
@@ -237,6 +245,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     result.deskewed_scan = std::move(best.deskewed);
     result.map_points = std::move(best.map_points);
     if (best.changed) {
+      result.turn_hypothesis_won = true;
       estimate = best.pose;
       result.icp = best.icp;
       estimated_velocity = best.velocity;
@@ -244,7 +253,13 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     result.timing.registration_ms += watch.Lap();
   }
 
+  if (!continuous) recent_weights_.clear();
   if (result.registered) {
+    recent_weights_.push_back(result.icp.mean_weight);
+    while (recent_weights_.size() >
+           static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
+      recent_weights_.pop_front();
+    }
     threshold_.Update(se3::Between(result.prediction, estimate), se3::Between(pose_, estimate));
     velocity_ = continuous ? estimated_velocity : se3::Vector6d::Zero();
   } else if (has_scan_) {
@@ -282,6 +297,17 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   }
   result.timing.total_ms = total.Lap();
   return result;
+}
+
+bool Odometry::TurnHypothesesTriggered(double mean_weight) const {
+  if (recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
+    return false;
+  }
+  if (config_.turn_hypothesis_trigger <= 0.0) return true;
+  std::vector<double> weights(recent_weights_.begin(), recent_weights_.end());
+  const auto middle = weights.begin() + static_cast<std::ptrdiff_t>(weights.size() / 2);
+  std::nth_element(weights.begin(), middle, weights.end());
+  return mean_weight < config_.turn_hypothesis_trigger * *middle;
 }
 
 // Why a window: with the velocity of the last interval only, an along-track pose error e_k

@@ -126,6 +126,18 @@ struct OdometryConfig {
   /// and registrations per scan).
   double turn_hypothesis_step_rad_s = 0.0;
   double turn_hypothesis_margin = 1.02;
+  /// The hypotheses are tried only once `turn_hypothesis_window_scans` scans have been
+  /// registered since the start or the last gap (never while starting up), and only for a
+  /// scan whose registration's mean kernel weight is below `turn_hypothesis_trigger` times
+  /// the median of the last `turn_hypothesis_window_scans` registered scans' (a failing turn
+  /// fits worse than the scans before it). 0: every scan after the window. Session 26,
+  /// `campus`, 3-session pipeline with the hypotheses on (0.4 rad/s) and 0.95: a run trying
+  /// every scan had 7-10 % of them below the trigger. Seed 2 then has 0 + 0 wrong and 0
+  /// missed submaps and rigidly aligned ATE 0.074 / 0.063 / 0.050 m, but the whole map sits
+  /// 0.13 deg / 0.19 m off the first scan's frame (map-frame ATE 0.39 / 0.37 / 0.44 m, static
+  /// SA 67 %); seed 1 is worse than without them (see docs/status_details.md).
+  double turn_hypothesis_trigger = 0.0;
+  int turn_hypothesis_window_scans = 20;
   double refine_min_translation_m = 0.02;
   double refine_min_rotation_rad = 0.004;
 
@@ -150,6 +162,10 @@ struct OdometryResult {
   bool registered = false;
   /// true: the scan was de-skewed a second time with the estimated velocity (refine_deskew).
   bool refined = false;
+  /// true: the turn hypotheses were tried (turn_hypothesis_step_rad_s and the trigger).
+  bool turn_hypotheses_tried = false;
+  /// true: one of them replaced the registration.
+  bool turn_hypothesis_won = false;
   std::string message;
   /// Filtered scan, de-skewed, in the sensor frame at the stamp; all attributes kept.
   LidarScan deskewed_scan;
@@ -190,6 +206,9 @@ class Odometry {
   /// Mean twist from the oldest pose of the window to `estimate` at `stamp_s` (the scan
   /// being processed); zero without an earlier pose since the last gap.
   se3::Vector6d WindowVelocity(const Pose3& estimate, double stamp_s) const;
+  /// Whether a registration with this mean kernel weight tries the turn hypotheses (see
+  /// OdometryConfig::turn_hypothesis_trigger).
+  bool TurnHypothesesTriggered(double mean_weight) const;
 
   OdometryConfig config_;
   InputFilter filter_;
@@ -202,6 +221,9 @@ class Odometry {
   se3::Vector6d velocity_ = se3::Vector6d::Zero();
   /// The last velocity_window_scans poses since the last gap, oldest first.
   std::deque<StampedPose, Eigen::aligned_allocator<StampedPose>> recent_;
+  /// Mean kernel weights of the last turn_hypothesis_window_scans registered scans since the
+  /// last gap, oldest first.
+  std::deque<double> recent_weights_;
   double last_stamp_s_ = 0.0;
   bool has_scan_ = false;
   Trajectory trajectory_;
