@@ -253,13 +253,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     result.timing.registration_ms += watch.Lap();
   }
 
-  if (!continuous) recent_weights_.clear();
   if (result.registered) {
-    recent_weights_.push_back(result.icp.mean_weight);
-    while (recent_weights_.size() >
-           static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
-      recent_weights_.pop_front();
-    }
     threshold_.Update(se3::Between(result.prediction, estimate), se3::Between(pose_, estimate));
     velocity_ = continuous ? estimated_velocity : se3::Vector6d::Zero();
   } else if (has_scan_) {
@@ -290,10 +284,17 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   stamped.stamp_s = scan.stamp_s;
   stamped.pose = estimate;
   trajectory_.push_back(stamped);
-  if (!continuous) recent_.clear();  // the window never spans a gap
+  if (!continuous) {  // the windows never span a gap
+    recent_.clear();
+    recent_weights_.clear();
+  }
   recent_.push_back(stamped);
   while (recent_.size() > static_cast<std::size_t>(config_.velocity_window_scans)) {
     recent_.pop_front();
+  }
+  if (result.registered) recent_weights_.push_back(result.icp.mean_weight);
+  while (recent_weights_.size() > static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
+    recent_weights_.pop_front();
   }
   result.timing.total_ms = total.Lap();
   return result;
