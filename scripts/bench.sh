@@ -198,8 +198,9 @@ bench['evaluate'] = {'available': report is not None, 'wall_s': ev.get('wall_s')
 if report:
     bench['headline'] = {
         'sessions': [{k: s.get(k) for k in (
-            'name', 'scans', 'ate_rmse_m', 'ate_rmse_aligned_m', 'rpe_100m_pct', 'rpe_100m_deg',
-            'submaps_total', 'submaps_correct', 'submaps_undefined_new',
+            'name', 'scans', 'ate_rmse_m', 'ate_rmse_map_fit_m', 'ate_rmse_aligned_m',
+            'rpe_100m_pct', 'rpe_100m_deg', 'submaps_total', 'submaps_correct',
+            'submaps_undefined_new',
             'submaps_undefined_missed', 'submaps_wrong', 'inter_loop_trans_err_median_m',
             'inter_loop_rot_err_median_deg', 'intra_loops_accepted', 'intra_loops_wrong')}
             | {'place_recognition': {k: (s.get('place_recognition') or {}).get(k) for k in (

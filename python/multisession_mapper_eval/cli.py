@@ -75,6 +75,13 @@ def build_parser():
                         '(default), or its true origin, which measures the content of the map '
                         '(what was removed and kept) without its alignment error (a diagnosis; '
                         'not a result of the pipeline)')
+    p.add_argument('--dynamics-frame', choices=('map-fit', 'first-scan'), default='map-fit',
+                   help='frame in which the map is compared with the labelled truth points: '
+                   'map-fit (default): one SE(3) that best aligns the whole map (every '
+                   'session\'s poses at once) with the truth, so that a rigid offset of the '
+                   'whole map, which the ATE figures already count, is not also counted as '
+                   'removed static points; first-scan: the first scan\'s frame '
+                   '(frame.t_map_world)')
     p.add_argument('--no-dynamics', action='store_true', help='skip the dynamic-removal part')
     p.add_argument('--no-plots', action='store_true', help='do not write PNG plots')
     p.add_argument('--quiet', action='store_true', help='do not print the tables')
@@ -124,9 +131,35 @@ def _t_map_world(map_dir, truth_trajectories):
     return tr.inverse(trajectory.poses[0])
 
 
-def _trajectory_figures(estimate, truth_map, odom, options, warnings, name):
+def t_map_world_fitted(map_dir, truth_map, t_map_world, tolerance_s):
+    """World -> map through one SE(3) fit of the whole map: Umeyama on the positions of every
+    session's poses at once (truth_map: truth already in the first scan's frame). The sessions
+    are not aligned separately, so their offsets against each other stay in the figures. With
+    fewer than 3 associated poses the first scan's transform is returned unchanged."""
+    estimates, truths = [], []
+    for name in map_dir.session_names:
+        estimate = map_dir.trajectory(name)
+        if estimate is None or name not in truth_map:
+            continue
+        est, ref = tr.associate(estimate, truth_map[name], tolerance_s)
+        estimates.append(est)
+        truths.append(ref)
+    if sum(len(e) for e in estimates) < 3:
+        return t_map_world
+    return tr.align_se3(np.concatenate(truths), np.concatenate(estimates)) @ t_map_world
+
+
+def map_frames(map_dir, truth_world, tolerance_s):
+    """(T_map_world of the first scan, T_map_world of the whole-map fit)."""
+    first_scan = _t_map_world(map_dir, truth_world)
+    truth_map = {n: t.transformed(first_scan) for n, t in truth_world.items()}
+    return first_scan, t_map_world_fitted(map_dir, truth_map, first_scan, tolerance_s)
+
+
+def _trajectory_figures(estimate, truth_map, truth_fit, odom, options, warnings, name):
     keys = {'ate_rmse_m': None, 'ate_mean_m': None, 'ate_median_m': None, 'ate_max_m': None,
-            'ate_rmse_aligned_m': None, 'ate_poses': 0, 'odom_ate_rmse_aligned_m': None,
+            'ate_rmse_map_fit_m': None, 'ate_max_map_fit_m': None, 'ate_rmse_aligned_m': None,
+            'ate_poses': 0, 'odom_ate_rmse_aligned_m': None,
             'rpe_10m_pct': None, 'rpe_10m_deg': None, 'rpe_10m_pairs': 0,
             'rpe_100m_pct': None, 'rpe_100m_deg': None, 'rpe_100m_pairs': 0,
             'rpe_100m_trans_rmse_m': None, 'path_length_m': None}
@@ -141,9 +174,11 @@ def _trajectory_figures(estimate, truth_map, odom, options, warnings, name):
         warnings.append('%s: %d of %d estimated poses have no truth stamp'
                         % (name, len(estimate) - len(est), len(estimate)))
     a = tr.ate(est, ref)
+    fit = tr.ate(*tr.associate(estimate, truth_fit, options.stamp_tolerance_s))
     keys.update({'ate_rmse_m': a['rmse'], 'ate_mean_m': a['mean'], 'ate_median_m': a['median'],
                  'ate_max_m': a['max'], 'ate_poses': a['n'],
                  'ate_rmse_aligned_m': tr.ate(est, ref, align=True)['rmse'],
+                 'ate_rmse_map_fit_m': fit['rmse'], 'ate_max_map_fit_m': fit['max'],
                  'path_length_m': tr.Trajectory(np.zeros(len(ref)), ref).path_length()})
     for delta, tag in ((10.0, '10m'), (100.0, '100m')):
         r = tr.rpe(est, ref, delta, all_pairs=options.rpe_all_pairs)
@@ -157,6 +192,13 @@ def _trajectory_figures(estimate, truth_map, odom, options, warnings, name):
         if len(e2):
             keys['odom_ate_rmse_aligned_m'] = tr.ate(e2, r2, align=True)['rmse']
     return keys
+
+
+def _offset_figures(pose):
+    """Rotation angle [deg] and translation [m] of a rigid transform."""
+    cos_angle = np.clip((np.trace(pose[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    return {'rotation_deg': float(np.degrees(np.arccos(cos_angle))),
+            'translation_m': float(np.linalg.norm(pose[:3, 3]))}
 
 
 def run(options):
@@ -176,8 +218,11 @@ def run(options):
                                     % (name, options.truth))
         truth_names[name] = resolved
         truth_world[name] = truth.trajectory(resolved)
-    t_map_world = _t_map_world(map_dir, truth_world)
+    t_map_world, t_map_world_fit = map_frames(map_dir, truth_world, options.stamp_tolerance_s)
     truth_map = {n: t.transformed(t_map_world) for n, t in truth_world.items()}
+    truth_fit = {n: t.transformed(t_map_world_fit) for n, t in truth_world.items()}
+    # The dynamics part compares points in this frame.
+    t_map_world_points = t_map_world_fit if options.dynamics_frame == 'map-fit' else t_map_world
 
     loop_options = loops.LoopOptions(options.loop_max_trans_m, options.loop_max_rot_deg,
                                      options.overlap_radius_m, options.overlap_min_fraction,
@@ -197,7 +242,8 @@ def run(options):
                                  (estimate.stamps[-1] - estimate.stamps[0]
                                   if estimate is not None and len(estimate) > 1 else 0.0)),
              'has_history': index > 0}
-        s.update(_trajectory_figures(estimate, truth_map[name], odom, options, warnings, name))
+        s.update(_trajectory_figures(estimate, truth_map[name], truth_fit[name], odom, options,
+                                     warnings, name))
         if estimate is not None:
             est_positions[name] = estimate.positions
         if index > 0 and not map_dir.has_loops(name):
@@ -234,12 +280,14 @@ def run(options):
                          'map_format_version': map_dir.format_version},
               'options': {k: v for k, v in vars(options).items()
                           if k not in ('map', 'truth', 'out')},
-              'frame': {'t_map_world': tr.pose_to_list(t_map_world)},
+              'frame': {'t_map_world': tr.pose_to_list(t_map_world),
+                        't_map_world_fit': tr.pose_to_list(t_map_world_fit),
+                        'map_fit': _offset_figures(t_map_world_fit @ tr.inverse(t_map_world))},
               'sessions': sessions}
 
     plot_data = {'est_traj': est_positions,
                  'truth_traj': {n: t.positions for n, t in truth_map.items()},
-                 'truth_map_traj': truth_map,
+                 'truth_map_traj': truth_map, 'truth_fit_traj': truth_fit,
                  'pr_curves': pr_curves, 'sessions': sessions[1:] or sessions,
                  'map_points': None, 'removed': None}
     needs_points = not options.no_dynamics or not options.no_plots
@@ -258,7 +306,7 @@ def run(options):
                         warnings.append('no truth pose for submap %s/%d: left out'
                                         % (sm.session, sm.id))
                     else:
-                        clouds.append(sm.load_points(t_map_world @ true_origin))
+                        clouds.append(sm.load_points(t_map_world_points @ true_origin))
                 else:
                     clouds.append(sm.load_points())
             map_points[name] = np.vstack(clouds) if clouds else np.zeros((0, 3))
@@ -285,8 +333,8 @@ def run(options):
         if eval_range is None:
             eval_range = find_parameter(map_dir.parameters, 'max_point_range_m') or 60.0
         gt = dynamics.ground_truth(truth, map_dir.session_names, truth_names, truth_world,
-                                   t_map_world, options.observe_radius_m, voxel, eval_range,
-                                   options.observed_rule, options.footprint_margin_m,
+                                   t_map_world_points, options.observe_radius_m, voxel,
+                                   eval_range, options.observed_rule, options.footprint_margin_m,
                                    options.footprint_min_points)
         if gt is None:
             result['dynamics']['reason'] = 'no truth/<session>_labels.pcd'
@@ -303,6 +351,7 @@ def run(options):
             figures['observed_rule'] = options.observed_rule
             figures['observe_radius_m'] = options.observe_radius_m
             figures['submap_origins'] = options.submap_origins
+            figures['frame'] = options.dynamics_frame
             figures['label_voxel_m'] = voxel
             result['dynamics'] = figures
 
@@ -333,6 +382,10 @@ def main(argv=None):
     os.makedirs(truth_dir, exist_ok=True)
     for name, trajectory in plot_data['truth_map_traj'].items():
         tr.write_tum(os.path.join(truth_dir, name + '.tum'), trajectory)
+    fit_dir = os.path.join(out_dir, 'truth_map_fit')
+    os.makedirs(fit_dir, exist_ok=True)
+    for name, trajectory in plot_data['truth_fit_traj'].items():
+        tr.write_tum(os.path.join(fit_dir, name + '.tum'), trajectory)
     text = report_mod.write(result, out_dir)
     if not options.quiet:
         print(text)

@@ -331,7 +331,7 @@ def score(truth, map_names, t_map_world, map_points, kept_radius, eval_range, op
 
 
 def our_map(map_path, truth):
-    """(session names, T_map_world, map points, timing) of our map directory, as cli.py."""
+    """(map directory, T_map_world, map points, timing) of our map directory, as cli.py."""
     map_dir = eval_io.MapDir(map_path)
     truth_world = {}
     for name in map_dir.session_names:
@@ -339,7 +339,9 @@ def our_map(map_path, truth):
         if resolved != name:
             raise ValueError('map session %s is not a session of %s' % (name, truth.path))
         truth_world[name] = truth.trajectory(name)
-    t_map_world = eval_cli._t_map_world(map_dir, truth_world)
+    # The evaluator's default frame for the dynamics (--dynamics-frame map-fit): one SE(3) fit
+    # of the whole map, so that DUFOMap (truth poses) and our map are scored on their content.
+    t_map_world = eval_cli.map_frames(map_dir, truth_world, 1e-3)[1]
     clouds = [sm.load_points() for n in map_dir.session_names for sm in map_dir.submaps_of(n)
               if sm.status == 'active' and os.path.isfile(sm.file)]
     points = np.vstack(clouds) if clouds else np.zeros((0, 3))
