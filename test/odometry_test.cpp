@@ -132,6 +132,26 @@ TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
   EXPECT_GT(triggered.turn_hypotheses_won, 0);
   EXPECT_LT(triggered.turn_hypotheses_tried, with.turn_hypotheses_tried / 2);
   EXPECT_LT(triggered.max_rotation_rad, 0.7 * without.max_rotation_rad);
+
+  // And in every scan of a turn (where the turn's end comes), whatever its fit.
+  config.turn_hypothesis_in_turns = true;
+  const SequenceErrors in_turns = RunSequence(steps, true, config);
+  std::cout << "triggered at 0.95 and in turns: tried on " << in_turns.turn_hypotheses_tried
+            << ", won " << in_turns.turn_hypotheses_won << "; max error "
+            << in_turns.max_translation_m << " m, " << in_turns.max_rotation_rad / kDeg << " deg"
+            << std::endl;
+  EXPECT_GT(in_turns.turn_hypotheses_tried, triggered.turn_hypotheses_tried + 30);
+  EXPECT_LT(in_turns.turn_hypotheses_tried, with.turn_hypotheses_tried);
+  EXPECT_LT(in_turns.max_rotation_rad, 0.7 * without.max_rotation_rad);
+
+  // Half steps too: the same scans try them, with rates in between.
+  config.turn_hypothesis_levels = 2;
+  const SequenceErrors halves = RunSequence(steps, true, config);
+  std::cout << "with half steps: tried on " << halves.turn_hypotheses_tried << ", won "
+            << halves.turn_hypotheses_won << "; max error " << halves.max_translation_m
+            << " m, " << halves.max_rotation_rad / kDeg << " deg" << std::endl;
+  EXPECT_LT(halves.max_translation_m, 0.07);
+  EXPECT_LT(halves.max_rotation_rad, 0.7 * without.max_rotation_rad);
 }
 
 TEST(OdometryTest, TracksWithoutPerPointTime) {
@@ -169,6 +189,9 @@ TEST(OdometryTest, RejectsBadInputWithoutChangingState) {
   EXPECT_FALSE(Odometry::Create(bad).ok());
   bad = OdometryConfig();
   bad.turn_hypothesis_trigger = -0.5;
+  EXPECT_FALSE(Odometry::Create(bad).ok());
+  bad = OdometryConfig();
+  bad.turn_hypothesis_levels = 0;
   EXPECT_FALSE(Odometry::Create(bad).ok());
   bad = OdometryConfig();
   bad.turn_hypothesis_window_scans = 0;

@@ -66,9 +66,10 @@ Status OdometryConfig::Validate() const {
         "odometry.turn_hypothesis_step_rad_s must be >= 0 and turn_hypothesis_margin >= 1");
   }
   if (!std::isfinite(turn_hypothesis_trigger) || turn_hypothesis_trigger < 0.0 ||
-      turn_hypothesis_window_scans < 1) {
+      turn_hypothesis_window_scans < 1 || turn_hypothesis_levels < 1) {
     return Status::Error(
-        "odometry.turn_hypothesis_trigger must be >= 0 and turn_hypothesis_window_scans >= 1");
+        "odometry.turn_hypothesis_trigger must be >= 0, turn_hypothesis_window_scans and "
+        "turn_hypothesis_levels >= 1");
   }
   if (velocity_window_scans < 1) {
     return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
@@ -210,14 +211,23 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   }
 
   if (result.registered && continuous && dt > 0.0 && config_.turn_hypothesis_step_rad_s > 0.0 &&
-      TurnHypothesesTriggered(result.icp.mean_weight)) {
+      TurnHypothesesTriggered(result.icp.mean_weight, velocity(5))) {
     // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
     // one scan leaves the prediction (and its de-skew) a whole step off.
     result.turn_hypotheses_tried = true;
     const double step = config_.turn_hypothesis_step_rad_s;
     const double predicted_rate = velocity(5);
-    std::vector<double> rates = {predicted_rate - step, predicted_rate + step};
-    if (std::abs(predicted_rate) > 0.5 * step) rates.push_back(0.0);
+    std::vector<double> rates;
+    for (int level = 1; level <= config_.turn_hypothesis_levels; ++level) {
+      const double offset = step * level / config_.turn_hypothesis_levels;
+      rates.push_back(predicted_rate - offset);
+      rates.push_back(predicted_rate + offset);
+    }
+    // In a turn also its end, unless the rates above hold it already.
+    if (std::abs(predicted_rate) > 0.5 * step &&
+        std::none_of(rates.begin(), rates.end(), [](double r) { return std::abs(r) < 1e-9; })) {
+      rates.push_back(0.0);
+    }
     struct Best {
       double score;
       Pose3 pose;
@@ -300,11 +310,15 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   return result;
 }
 
-bool Odometry::TurnHypothesesTriggered(double mean_weight) const {
+bool Odometry::TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const {
   if (recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
     return false;
   }
   if (config_.turn_hypothesis_trigger <= 0.0) return true;
+  if (config_.turn_hypothesis_in_turns &&
+      std::abs(predicted_yaw_rate) > 0.5 * config_.turn_hypothesis_step_rad_s) {
+    return true;
+  }
   std::vector<double> weights(recent_weights_.begin(), recent_weights_.end());
   const auto middle = weights.begin() + static_cast<std::ptrdiff_t>(weights.size() / 2);
   std::nth_element(weights.begin(), middle, weights.end());

@@ -138,6 +138,22 @@ struct OdometryConfig {
   /// SA 67 %); seed 1 is worse than without them (see docs/status_details.md).
   double turn_hypothesis_trigger = 0.0;
   int turn_hypothesis_window_scans = 20;
+  /// true: with a trigger, a scan predicted to turn faster than half of
+  /// `turn_hypothesis_step_rad_s` tries the hypotheses whatever its fit (after the window):
+  /// a turn's end is the likeliest yaw-rate step, and its scan need not fit worse than the
+  /// turn's scans before it. Off by default; see turn_hypothesis_levels for the figures.
+  bool turn_hypothesis_in_turns = false;
+  /// The hypotheses' yaw rates: the predicted one -/+ k / levels x turn_hypothesis_step_rad_s
+  /// for k = 1..levels. 2 adds half steps: a turn that starts or ends part-way through a
+  /// sweep turns it at a mean rate between the two. Session 27, `campus` seed 2 s02, with
+  /// motion_prior_weight 30, trigger 0.95: the scan ending a sharp turn (526.6-530.5 s) was
+  /// 1.54 deg off with 1 level and in_turns (the same as without in_turns), 0.31 deg with 2;
+  /// odometry alone, aligned ATE 0.249 -> 0.182 m. 3-session pipeline (prior 30, trigger 0.95,
+  /// in_turns, 2 levels) against the same without in_turns and with 1 level, ATE after the
+  /// whole-map fit: seed 1 0.160 / 0.167 / 0.486 m (0.124 / 0.119 / 0.226), seed 2 0.067 /
+  /// 0.066 / 0.055 m, 0 wrong (0.070 / 0.078 / 0.066 m, 1 wrong), seed 3 0.107 / 0.108 /
+  /// 0.129 m, 2 wrong (0.086 / 0.104 / 0.117 m, 3 wrong). Mixed, so 1 by default.
+  int turn_hypothesis_levels = 1;
   double refine_min_translation_m = 0.02;
   double refine_min_rotation_rad = 0.004;
 
@@ -206,9 +222,10 @@ class Odometry {
   /// Mean twist from the oldest pose of the window to `estimate` at `stamp_s` (the scan
   /// being processed); zero without an earlier pose since the last gap.
   se3::Vector6d WindowVelocity(const Pose3& estimate, double stamp_s) const;
-  /// Whether a registration with this mean kernel weight tries the turn hypotheses (see
-  /// OdometryConfig::turn_hypothesis_trigger).
-  bool TurnHypothesesTriggered(double mean_weight) const;
+  /// Whether a registration with this mean kernel weight, predicted at this yaw rate
+  /// [rad/s], tries the turn hypotheses (see OdometryConfig::turn_hypothesis_trigger and
+  /// turn_hypothesis_in_turns).
+  bool TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const;
 
   OdometryConfig config_;
   InputFilter filter_;
