@@ -224,7 +224,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       rates.push_back(predicted_rate + offset);
     }
     // In a turn also its end, unless the rates above hold it already.
-    if (std::abs(predicted_rate) > 0.5 * step &&
+    if (InTurn(predicted_rate) &&
         std::none_of(rates.begin(), rates.end(), [](double r) { return std::abs(r) < 1e-9; })) {
       rates.push_back(0.0);
     }
@@ -310,15 +310,16 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   return result;
 }
 
+bool Odometry::InTurn(double yaw_rate) const {
+  return std::abs(yaw_rate) > 0.5 * config_.turn_hypothesis_step_rad_s;
+}
+
 bool Odometry::TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const {
   if (recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
     return false;
   }
   if (config_.turn_hypothesis_trigger <= 0.0) return true;
-  if (config_.turn_hypothesis_in_turns &&
-      std::abs(predicted_yaw_rate) > 0.5 * config_.turn_hypothesis_step_rad_s) {
-    return true;
-  }
+  if (config_.turn_hypothesis_in_turns && InTurn(predicted_yaw_rate)) return true;
   std::vector<double> weights(recent_weights_.begin(), recent_weights_.end());
   const auto middle = weights.begin() + static_cast<std::ptrdiff_t>(weights.size() / 2);
   std::nth_element(weights.begin(), middle, weights.end());

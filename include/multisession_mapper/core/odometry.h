@@ -226,6 +226,9 @@ class Odometry {
   /// [rad/s], tries the turn hypotheses (see OdometryConfig::turn_hypothesis_trigger and
   /// turn_hypothesis_in_turns).
   bool TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const;
+  /// Whether this yaw rate [rad/s] is a turn for the hypotheses: faster than half of
+  /// turn_hypothesis_step_rad_s.
+  bool InTurn(double yaw_rate) const;
 
   OdometryConfig config_;
   InputFilter filter_;
