@@ -55,22 +55,35 @@ msm_install_deps() {
 }
 
 # Creates the catkin workspace (ignored folder) with the repository linked into its source
-# space MSM_SRC = ${MSM_WS}/.src. The source space is hidden because roslaunch / rostest find a
-# node (`<node pkg= type=>`, `<test>`) by walking the package's whole folder, following links
-# and skipping only hidden folders: a visible link from build/ back to the repository makes
-# that walk endless (CATKIN_IGNORE stops catkin and rospack, not that walk). Workspaces created
-# before with src/ keep it (pass MSM_SRC to every catkin_make: --source "${MSM_SRC}").
+# space MSM_SRC. The link back to the repository must not be reachable from inside it: rosrun
+# looks for an executable with `find -L` over the whole package folder, and roslaunch / rostest
+# walk it following links, so a link from build/ back to the repository made rosrun print
+# "File system loop detected" on every call (and makes a walk that does not skip hidden
+# folders endless). A workspace inside the repository (the default build/ws) therefore gets its
+# source space outside it, in the user's cache folder, one per repository path; a workspace
+# elsewhere (MSM_WS=/some/ws) keeps it at ${MSM_WS}/src. Workspaces created before with
+# ${MSM_WS}/.src are moved over (their build folder is made anew once: CMake keeps the source
+# path). Pass MSM_SRC to every catkin_make: --source "${MSM_SRC}".
 msm_prepare_workspace() {
-  if [ -e "${MSM_WS}/src/multisession_mapper" ]; then
-    MSM_SRC="${MSM_WS}/src"
-  else
-    MSM_SRC="${MSM_WS}/.src"
-  fi
+  case "${MSM_WS}/" in
+    "${MSM_REPO}/"*)
+      local key
+      key="$(printf '%s' "${MSM_REPO}" | md5sum | cut -c1-12)"
+      MSM_SRC="${XDG_CACHE_HOME:-${HOME:-/tmp}/.cache}/multisession_mapper/src-${key}"
+      # The repository must not be walked into by rospack / catkin from its own build/.
+      mkdir -p "${MSM_REPO}/build"
+      touch "${MSM_REPO}/build/CATKIN_IGNORE"
+      ;;
+    *) MSM_SRC="${MSM_WS}/src" ;;
+  esac
   export MSM_SRC
+  local cache="${MSM_WS}/build/CMakeCache.txt"
+  if [ -f "${cache}" ] && ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${MSM_SRC}" "${cache}"; then
+    msm_log "the workspace ${MSM_WS} was configured with another source space: building it anew"
+    rm -rf "${MSM_WS}/build" "${MSM_WS}/devel"
+  fi
+  rm -rf "${MSM_WS}/.src"  # the old source space inside the repository (the loop)
   mkdir -p "${MSM_SRC}"
-  # The workspace links back to the repository; keep rospack from crawling into build/
-  # (it would report a file system loop).
-  case "${MSM_WS}" in "${MSM_REPO}/build/"*) touch "${MSM_REPO}/build/CATKIN_IGNORE" ;; esac
   if [ ! -e "${MSM_SRC}/multisession_mapper" ]; then
     ln -s "${MSM_REPO}" "${MSM_SRC}/multisession_mapper"
   fi
