@@ -404,7 +404,9 @@ class PairDetection {
            },
            &cluster);
       if (static_cast<int>(cluster.size()) < config_.changed_min_points) continue;
-      if (!MovableShape(s, cluster)) continue;
+      // The shape of the whole object, not of its cut by the compare range: a wall or hedge
+      // that leaves the range would pass for a car-sized object.
+      if (!MovableShape(s, cluster) || !WholeObjectIsMovable(s, cluster)) continue;
       DynamicDetectionResult::ExaminedObject object;
       object.side = s;
       object.points = cluster;

@@ -141,6 +141,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "bottom_min_height_m", &m.dynamics.bottom_min_height_m},
       {"low_dynamics", "bottom_max_drop_m", &m.dynamics.bottom_max_drop_m},
       {"low_dynamics", "changed_objects_enabled", &m.dynamics.changed_objects_enabled},
+      {"low_dynamics", "changed_compare_range_m", &m.dynamics.changed_compare_range_m},
       {"low_dynamics", "changed_surface_distance_m", &m.dynamics.changed_surface_distance_m},
       {"low_dynamics", "changed_min_fraction", &m.dynamics.changed_min_fraction},
       {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},

@@ -111,6 +111,7 @@ namespace ros_params {
   F(low_dynamics_bottom_min_height_m, g.dynamics.bottom_min_height_m)                         \
   F(low_dynamics_bottom_max_drop_m, g.dynamics.bottom_max_drop_m)                             \
   F(low_dynamics_changed_objects_enabled, g.dynamics.changed_objects_enabled)                 \
+  F(low_dynamics_changed_compare_range_m, g.dynamics.changed_compare_range_m)                 \
   F(low_dynamics_changed_surface_distance_m, g.dynamics.changed_surface_distance_m)           \
   F(low_dynamics_changed_min_fraction, g.dynamics.changed_min_fraction)                       \
   F(map_update_fuse_min_overlap_ratio, g.fusion.min_overlap_ratio)                            \
