@@ -525,9 +525,6 @@ TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBel
   EXPECT_EQ(without, 0);  // no ray of the current session passes through the roof's voxels
 }
 
-// A truck that left: its side (0.4-3.2 m high, facing the road) was seen through by the other
-// session only low, under 1 m; above the 2 m height guard its points are no seeds but belong
-// to the object grown from below, up to guard_object_height_m.
 // A low wall (a garden wall, a hedge) that the current session sees 0.25 m off (as a far
 // surface's alignment error puts it), from origins at x = 0, y in [-1, 1]. Only the part within
 // changed_compare_range_m of both sessions' origins is compared by the changed-object step.
@@ -536,22 +533,22 @@ TEST(DynamicDetectionTest, RoofIsDynamicWhenTheOtherSessionSawThroughTheSpaceBel
 // 8 m long (the control) is a changed object: the comparison itself does flag it.
 struct LowWallPair {
   Submap history, current;
-  std::vector<std::uint8_t> history_wall, current_wall;
+  std::vector<int> history_labels, current_labels;  // kGround / kWall
 };
 
 LowWallPair MakeLowWallPair(double half_length_m) {
   LowWallPair pair;
-  const auto make = [&](double wall_x, Submap* submap, std::vector<std::uint8_t>* wall) {
+  const auto make = [&](double wall_x, Submap* submap, std::vector<int>* labels) {
     for (double x = -2.0; x <= wall_x - 0.2 + 1e-9; x += 0.2) {
       for (double y = -16.0; y <= 16.0 + 1e-9; y += 0.2) {
         submap->points.emplace_back(x, y, 0.0);
-        wall->push_back(0);
+        labels->push_back(kGround);
       }
     }
     for (double y = -half_length_m; y <= half_length_m + 1e-9; y += 0.2) {
       for (double z = 0.2; z <= 1.4 + 1e-9; z += 0.2) {
         submap->points.emplace_back(wall_x, y, z);
-        wall->push_back(1);
+        labels->push_back(kWall);
       }
     }
     for (double y = -1.0; y <= 1.0 + 1e-9; y += 0.5) {
@@ -560,8 +557,8 @@ LowWallPair MakeLowWallPair(double half_length_m) {
       submap->scans.push_back(record);
     }
   };
-  make(10.0, &pair.history, &pair.history_wall);
-  make(10.25, &pair.current, &pair.current_wall);
+  make(10.0, &pair.history, &pair.history_labels);
+  make(10.25, &pair.current, &pair.current_labels);
   return pair;
 }
 
@@ -570,19 +567,12 @@ TEST(DynamicDetectionTest, LongLowWallCutByTheCompareRangeIsNoChangedObject) {
   config.changed_compare_range_m = 10.5;
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
   ASSERT_TRUE(detector.ok()) << detector.status().message();
-  const auto wall_points = [](const std::vector<std::uint8_t>& wall,
-                              const std::vector<std::uint32_t>& indices) {
-    int n = 0;
-    for (std::uint32_t i : indices) n += wall[i];
-    return n;
-  };
-
   // The long wall's cut by the range has a movable object's extent (the case of the test).
   const LowWallPair long_wall = MakeLowWallPair(15.0);
   double y_lo = 1e9, y_hi = -1e9;
   for (std::size_t i = 0; i < long_wall.history.points.size(); ++i) {
     const Eigen::Vector3d& p = long_wall.history.points[i];
-    if (!long_wall.history_wall[i] || p.z() < config.ground_tolerance_m) continue;
+    if (long_wall.history_labels[i] != kWall || p.z() < config.ground_tolerance_m) continue;
     for (const SubmapScanRecord& scan : long_wall.history.scans) {
       if ((p - scan.T_submap_sensor.translation()).norm() <= config.changed_compare_range_m) {
         y_lo = std::min(y_lo, p.y());
@@ -596,24 +586,26 @@ TEST(DynamicDetectionTest, LongLowWallCutByTheCompareRangeIsNoChangedObject) {
   StatusOr<DynamicDetectionResult> result =
       detector.value().Detect(long_wall.history, long_wall.current, Pose3::Identity());
   ASSERT_TRUE(result.ok()) << result.status().message();
-  EXPECT_EQ(wall_points(long_wall.history_wall, result.value().history_dynamic), 0);
-  EXPECT_EQ(wall_points(long_wall.current_wall, result.value().current_dynamic), 0);
+  EXPECT_EQ(CountLabel(long_wall.history_labels, result.value().history_dynamic, kWall, true), 0);
+  EXPECT_EQ(CountLabel(long_wall.current_labels, result.value().current_dynamic, kWall, true), 0);
   for (const auto& object : result.value().examined_objects) {
-    const auto& wall = object.side == 0 ? long_wall.history_wall : long_wall.current_wall;
-    EXPECT_EQ(wall_points(wall, object.points), 0) << "the long wall was examined";
+    const auto& labels = object.side == 0 ? long_wall.history_labels : long_wall.current_labels;
+    EXPECT_EQ(CountLabel(labels, object.points, kWall, true), 0) << "the long wall was examined";
   }
 
   // Control: a wall as long as that cut is examined and changed on both sides.
   const LowWallPair short_wall = MakeLowWallPair(0.5 * (y_hi - y_lo));
   result = detector.value().Detect(short_wall.history, short_wall.current, Pose3::Identity());
   ASSERT_TRUE(result.ok()) << result.status().message();
-  const int history_wall = CountLabel(
-      std::vector<int>(short_wall.history_wall.begin(), short_wall.history_wall.end()), 1);
-  EXPECT_GE(wall_points(short_wall.history_wall, result.value().history_dynamic),
-            0.5 * history_wall);
-  EXPECT_GT(wall_points(short_wall.current_wall, result.value().current_dynamic), 0);
+  EXPECT_GE(CountLabel(short_wall.history_labels, result.value().history_dynamic, kWall, true),
+            0.5 * CountLabel(short_wall.history_labels, kWall));
+  EXPECT_GT(CountLabel(short_wall.current_labels, result.value().current_dynamic, kWall, true),
+            0);
 }
 
+// A truck that left: its side (0.4-3.2 m high, facing the road) was seen through by the other
+// session only low, under 1 m; above the 2 m height guard its points are no seeds but belong
+// to the object grown from below, up to guard_object_height_m.
 TEST(DynamicDetectionTest, TallObjectIsRemovedAboveTheGuardUpToTheObjectHeight) {
   Submap history, current;
   AddStreet(1.0, &history.points);
