@@ -77,6 +77,8 @@ msm_prepare_workspace() {
     *) MSM_SRC="${MSM_WS}/src" ;;
   esac
   export MSM_SRC
+  # catkin_make -C needs the workspace folder to exist (a fresh clone has no build/ws yet).
+  mkdir -p "${MSM_WS}"
   local cache="${MSM_WS}/build/CMakeCache.txt"
   if [ -f "${cache}" ] && ! grep -qxF "CMAKE_HOME_DIRECTORY:INTERNAL=${MSM_SRC}" "${cache}"; then
     msm_log "the workspace ${MSM_WS} was configured with another source space: building it anew"
