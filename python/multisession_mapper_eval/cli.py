@@ -342,9 +342,11 @@ def run(options):
         else:
             all_map = (np.vstack(list(map_points.values())) if map_points
                        else np.zeros((0, 3)))
-            figures, _ = dynamics.evaluate(gt.points, gt.labels, gt.category, all_map,
-                                           kept_radius, options.kept_rule, gt.all_points,
-                                           gt.all_category)
+            figures, kept = dynamics.evaluate(gt.points, gt.labels, gt.category, all_map,
+                                              kept_radius, options.kept_rule, gt.all_points,
+                                              gt.all_category)
+            figures['breakdown'] = dynamics.breakdown(gt.category, kept, gt.path_distance,
+                                                      gt.object_ids, gt.low_presence)
             figures['evaluated'] = True
             figures['eval_range_m'] = eval_range
             figures['points']['outside_eval_range'] = gt.excluded

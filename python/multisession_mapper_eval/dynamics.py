@@ -32,7 +32,12 @@ GroundTruth = collections.namedtuple('GroundTruth', [
     'category',         # (N,) STATIC / LOW / HIGH
     'excluded',         # points left out by the evaluation range
     'all_points',       # (M, 3) map frame: every labelled point (for the label transfer)
-    'all_category'])    # (M,)
+    'all_category',     # (M,)
+    'path_distance',    # (N,) distance [m] to the nearest truth scan position (inf: none)
+    'low_presence'])    # low-dynamic object id -> tuple of the map sessions it is present in
+
+# Bands of the distance to the path [m] of the breakdown (the last one is open).
+RANGE_BANDS_M = (0.0, 10.0, 20.0, 30.0, 40.0)
 
 HIGH_DYNAMIC_CLASSES = (9, 10)
 CANOPY_CLASS = 6
@@ -271,13 +276,15 @@ def ground_truth(truth, map_session_names, truth_names, truth_trajectories, t_ma
     all_ids = np.concatenate([c[3][2] for c in clouds])
     keep = deduplicate(points, object_ids, label_voxel_m)
     points, labels, object_ids = points[keep], labels[keep], object_ids[keep]
-    if eval_range_m and eval_range_m > 0:
-        positions = [truth_trajectories[n].positions for n in map_session_names
-                     if n in truth_trajectories]
-        if positions:
-            inside = neighbors.has_neighbor_within(np.vstack(positions), points, eval_range_m)
-            excluded += int(np.sum(~inside))
-            points, labels, object_ids = points[inside], labels[inside], object_ids[inside]
+    positions = [truth_trajectories[n].positions for n in map_session_names
+                 if n in truth_trajectories and len(truth_trajectories[n]) > 0]
+    path_distance = (neighbors.min_distances(np.vstack(positions), points) if positions
+                     else np.full(len(points), np.inf))
+    if eval_range_m and eval_range_m > 0 and positions:
+        inside = path_distance <= eval_range_m
+        excluded += int(np.sum(~inside))
+        points, labels, object_ids = points[inside], labels[inside], object_ids[inside]
+        path_distance = path_distance[inside]
     # world.yaml names sessions by the simulator's names: translate to map names.
     to_map = {truth_names[m]: m for m in map_session_names if truth_names.get(m)}
     objects = []
@@ -296,6 +303,43 @@ def ground_truth(truth, map_session_names, truth_names, truth_trajectories, t_ma
     else:
         raise ValueError('unknown observed rule %s' % observed_rule)
     category = classify(labels, object_ids, low)
+    presence = {int(obj['id']): tuple(s for s in map_session_names if s in present)
+                for obj, present in _changing_objects(objects, map_session_names)
+                if int(obj['id']) in low}
     return GroundTruth(tr.transform_points(t_map_world, points), labels, object_ids, category,
                        excluded, tr.transform_points(t_map_world, all_points),
-                       classify(all_labels, all_ids, low))
+                       classify(all_labels, all_ids, low), path_distance, presence)
+
+
+def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RANGE_BANDS_M):
+    """Where the dynamic-removal figures come from (a diagnosis, next to the totals).
+
+    'by_range': per band of the distance to the path (band i is [bands[i], bands[i+1]), the last
+    one open), SA and the DA of the low- and high-dynamic points with their counts.
+    'low_by_presence': per set of map sessions a low-dynamic object is present in, the DA of its
+    points (e.g. ('s00',): in the first session only, gone later). Undefined ratios are None.
+    """
+    static, low, high = category == STATIC, category == LOW, category == HIGH
+    by_range = []
+    for i, lo in enumerate(bands):
+        hi = bands[i + 1] if i + 1 < len(bands) else None
+        band = (path_distance >= lo) & (path_distance < hi if hi is not None else True)
+        by_range.append({
+            'from_m': float(lo), 'to_m': None if hi is None else float(hi),
+            'sa': _ratio(np.sum(kept & static & band), np.sum(static & band)),
+            'low_da': _ratio(np.sum(~kept & low & band), np.sum(low & band)),
+            'high_da': _ratio(np.sum(~kept & high & band), np.sum(high & band)),
+            'static_points': int(np.sum(static & band)), 'low_points': int(np.sum(low & band)),
+            'high_points': int(np.sum(high & band))})
+    groups = collections.defaultdict(list)
+    for object_id, sessions in (low_presence or {}).items():
+        groups[tuple(sessions)].append(object_id)
+    by_presence = []
+    for sessions in sorted(groups, key=lambda k: (len(k), k)):
+        mine = low & np.isin(object_ids, np.array(sorted(groups[sessions]), dtype=np.int64))
+        if not mine.any():
+            continue
+        by_presence.append({'present_in': list(sessions), 'objects': len(groups[sessions]),
+                            'points': int(np.sum(mine)),
+                            'da': _ratio(np.sum(~kept & mine), np.sum(mine))})
+    return {'by_range': by_range, 'low_by_presence': by_presence}

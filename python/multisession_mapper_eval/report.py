@@ -113,6 +113,7 @@ def markdown(report):
         parts += ['## Dynamic removal (DynamicMap definitions, %%; kept radius %.2f m%s)'
                   % (d['kept_radius_m'], origins), '',
                   _table(['set', 'SA', 'DA', 'AA', 'HA', 'GT points'], rows), '']
+        parts += _breakdown_tables(d.get('breakdown'))
     else:
         parts += ['## Dynamic removal', '', 'not evaluated: %s' % d.get('reason', ''), '']
     m = report['map']
@@ -140,6 +141,26 @@ def markdown(report):
     if report.get('warnings'):
         parts += ['## Warnings', ''] + ['- ' + w for w in report['warnings']] + ['']
     return '\n'.join(parts)
+
+
+def _breakdown_tables(b):
+    """The dynamic-removal breakdown (by distance to the path, by presence) as markdown."""
+    if not b:
+        return []
+    rows = [['%.0f-%s' % (r['from_m'], '%.0f' % r['to_m'] if r['to_m'] is not None else ''),
+             _fmt(r['sa'], '%.2f', 100), r['static_points'], _fmt(r['low_da'], '%.2f', 100),
+             r['low_points'], _fmt(r['high_da'], '%.2f', 100), r['high_points']]
+            for r in b.get('by_range', [])]
+    parts = ['By distance to the nearest truth scan position [m]:', '',
+             _table(['distance', 'SA', 'static', 'low-dynamic DA', 'low', 'high-dynamic DA',
+                     'high'], rows), '']
+    presence = b.get('low_by_presence', [])
+    if presence:
+        parts += ['Low-dynamic objects by the sessions they are present in:', '',
+                  _table(['present in', 'objects', 'points', 'DA'],
+                         [[' + '.join(p['present_in']) or '-', p['objects'], p['points'],
+                           _fmt(p['da'], '%.2f', 100)] for p in presence]), '']
+    return parts
 
 
 def write(report, out_dir):

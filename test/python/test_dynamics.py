@@ -181,3 +181,45 @@ def test_points_measured_only_beyond_the_range_limit_are_excluded():
     without_limit = dynamics.ground_truth(truth, ['s00'], {'s00': 's00'}, {'s00': trajectory},
                                           np.eye(4), 30.0, 0.1, 0.0)
     assert without_limit.excluded == 0 and len(without_limit.points) == 3
+
+
+def test_breakdown_by_range_and_presence():
+    # Six points: static at 5 m (kept) and 25 m (lost), low-dynamic of object 7 (present in s00
+    # only) at 5 m (removed) and 15 m (kept), of object 8 (s00 + s01) at 45 m (removed), one
+    # high-dynamic point at 35 m (removed).
+    category = np.array([dynamics.STATIC, dynamics.STATIC, dynamics.LOW, dynamics.LOW,
+                         dynamics.LOW, dynamics.HIGH])
+    kept = np.array([True, False, False, True, False, False])
+    distance = np.array([5.0, 25.0, 5.0, 15.0, 45.0, 35.0])
+    ids = np.array([1, 2, 7, 7, 8, 9])
+    b = dynamics.breakdown(category, kept, distance, ids, {7: ('s00',), 8: ('s00', 's01')},
+                           bands=(0.0, 10.0, 20.0, 40.0))
+    r = b['by_range']
+    assert [x['from_m'] for x in r] == [0.0, 10.0, 20.0, 40.0] and r[-1]['to_m'] is None
+    assert r[0]['sa'] == 1.0 and r[0]['low_da'] == 1.0 and r[0]['high_da'] is None
+    assert r[1]['sa'] is None and r[1]['low_da'] == 0.0 and r[1]['low_points'] == 1
+    assert r[2]['sa'] == 0.0 and r[2]['high_da'] == 1.0
+    assert r[3]['low_da'] == 1.0 and r[3]['static_points'] == 0
+    p = b['low_by_presence']
+    assert [x['present_in'] for x in p] == [['s00'], ['s00', 's01']]
+    assert p[0]['points'] == 2 and p[0]['da'] == 0.5 and p[1]['da'] == 1.0
+
+
+def test_ground_truth_gives_path_distances_and_presence(synthetic_dirs):
+    map_dir, truth = io.MapDir(synthetic_dirs[0]), io.Truth(synthetic_dirs[1])
+    names = {n: n for n in map_dir.session_names}
+    trajectories = {n: truth.trajectory(n) for n in names}
+    t_map_world = tr.inverse(trajectories['s00'].poses[0])
+    gt = dynamics.ground_truth(truth, map_dir.session_names, names, trajectories, t_map_world,
+                               30.0, 0.1, 60.0)
+    positions = tr.transform_points(t_map_world,
+                                    np.vstack([t.positions for t in trajectories.values()]))
+    expected = np.min(np.linalg.norm(gt.points[:, None, :] - positions[None], axis=2), axis=1)
+    np.testing.assert_allclose(gt.path_distance, expected, atol=1e-9)
+    assert gt.low_presence == {17: ('s00',)}  # car 17: in s00 only, s01 saw its place empty
+    map_points = np.vstack([s.load_points() for s in map_dir.submaps if s.status == 'active'])
+    figures, kept = dynamics.evaluate(gt.points, gt.labels, gt.category, map_points, 0.2)
+    b = dynamics.breakdown(gt.category, kept, gt.path_distance, gt.object_ids, gt.low_presence)
+    assert sum(r['low_points'] for r in b['by_range']) == E['low_points']
+    assert sum(r['static_points'] for r in b['by_range']) == E['static_points']
+    assert b['low_by_presence'][0]['da'] == pytest.approx(E['low_da'])
