@@ -403,6 +403,65 @@ TEST(DynamicDetectionTest, AnotherCarInTheSamePlaceIsDynamicInBothSubmaps) {
   for (std::uint32_t i : result.current_mending) EXPECT_NE(current.labels[i], kCar);
 }
 
+// A shorter car in the slot of a longer one: the longer car's free end makes it changed by its
+// own comparison, while most of the shorter car lies on the longer one's surfaces. As the
+// partner of a changed object it is changed too, but only when it contradicts the other
+// session for at least changed_partner_min_fraction of its compared points.
+TEST(DynamicDetectionTest, ShorterCarInTheSlotOfAChangedCarIsItsPartner) {
+  Scene shorter{true};
+  shorter.car_box = Box{{7.25, -2.25, 0.25}, {9.0, 0.25, 1.5}};
+  const SessionData history = MakeSession(Scene{true}, 0.0, 71, HistoryFrame());
+  const SessionData current = MakeSession(shorter, 0.3, 72, Pose3::Identity());
+  auto car_object = [&](const DynamicDetectionResult& result, int side) {
+    const DynamicDetectionResult::ExaminedObject* best = nullptr;
+    int best_car = 0;
+    for (const auto& object : result.examined_objects) {
+      if (object.side != side) continue;
+      const int car = CountLabel(side == 0 ? history.labels : current.labels, object.points,
+                                 kCar, true);
+      if (car > best_car) best_car = car, best = &object;
+    }
+    return best;
+  };
+  DynamicDetectionConfig off;
+  off.changed_partner_min_fraction = off.changed_min_fraction;  // the rule is off
+  const DynamicDetectionResult alone = RunDetector(history, current, off);
+  const auto* longer_car = car_object(alone, 0);
+  const auto* shorter_car = car_object(alone, 1);
+  ASSERT_NE(longer_car, nullptr);
+  ASSERT_NE(shorter_car, nullptr);
+  const double fraction =
+      static_cast<double>(shorter_car->off_surface) / std::max(1, shorter_car->compared);
+  std::printf("longer car %d/%d off%s, shorter car %d/%d off (%.3f)%s\n",
+              longer_car->off_surface, longer_car->compared, longer_car->changed ? " changed" : "",
+              shorter_car->off_surface, shorter_car->compared, fraction,
+              shorter_car->changed ? " changed" : "");
+  // The case the rule is for: one side changed, its partner below the threshold but not zero.
+  ASSERT_TRUE(longer_car->changed);
+  ASSERT_FALSE(shorter_car->changed);
+  ASSERT_GE(shorter_car->compared, off.changed_min_compared);
+  ASSERT_GT(fraction, 0.02);
+  const int shorter_points = CountLabel(current.labels, kCar);
+  EXPECT_LT(CountLabel(current.labels, alone.current_dynamic, kCar, true), 0.5 * shorter_points);
+
+  DynamicDetectionConfig partner = off;
+  partner.changed_partner_min_fraction = fraction - 0.02;
+  const DynamicDetectionResult with = RunDetector(history, current, partner);
+  const auto* found = car_object(with, 1);
+  ASSERT_NE(found, nullptr);
+  EXPECT_TRUE(found->changed);
+  EXPECT_TRUE(found->by_partner);
+  EXPECT_GE(CountLabel(current.labels, with.current_dynamic, kCar, true), 0.9 * shorter_points);
+  EXPECT_LE(CountLabel(current.labels, with.current_dynamic, kCar, false), 3);
+  // The longer car is changed by itself, not by the rule.
+  EXPECT_FALSE(car_object(with, 0)->by_partner);
+
+  partner.changed_partner_min_fraction = fraction + 0.02;  // it agrees too well: stays
+  const DynamicDetectionResult strict = RunDetector(history, current, partner);
+  ASSERT_NE(car_object(strict, 1), nullptr);
+  EXPECT_FALSE(car_object(strict, 1)->changed);
+}
+
 // The same car in both sessions (sampled from other places, different noise) is static, and
 // it was examined (not just skipped as too small or too far).
 TEST(DynamicDetectionTest, TheSameCarInBothSessionsIsStatic) {

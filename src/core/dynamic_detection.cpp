@@ -378,9 +378,9 @@ class PairDetection {
   }
 
   // Step 5: objects of side s that are not the same object in the other session (another car
-  // in the same slot). Returns their points; every examined object goes to `examined`.
-  std::vector<std::uint32_t> ChangedObjects(
-      int s, std::vector<DynamicDetectionResult::ExaminedObject>* examined) {
+  // in the same slot). Every object of side s it examines goes to `examined`, with `changed`
+  // decided by its own comparison; PartnersOfChanged then adds the other side's partners.
+  void ExamineObjects(int s, std::vector<DynamicDetectionResult::ExaminedObject>* examined) {
     const Side& side = sides_[s];
     const int other = 1 - s;
     const std::size_t n = side.points.size();
@@ -391,7 +391,7 @@ class PairDetection {
                     NearAny(side.origins, side.points[i], range_sq) &&
                     NearAny(sides_[other].origins, side.points[i], range_sq);
     }
-    std::vector<std::uint32_t> changed, cluster;
+    std::vector<std::uint32_t> cluster;
     for (std::size_t seed = 0; seed < n; ++seed) {
       if (!eligible[seed]) continue;
       // Euclidean clustering; eligible[] doubles as the visited mark (cleared when taken).
@@ -413,10 +413,54 @@ class PairDetection {
       CompareSurfaces(s, cluster, &object);
       object.changed = object.compared >= config_.changed_min_compared &&
                        object.off_surface >= config_.changed_min_fraction * object.compared;
-      if (object.changed) changed.insert(changed.end(), cluster.begin(), cluster.end());
       examined->push_back(std::move(object));
     }
+  }
+
+  // Step 5, partners: two different objects in one place are both changed (the other car in
+  // the slot is in neither session's place of the first). An examined object that is not
+  // changed by its own comparison becomes changed when one of its points has a point of an
+  // object changed on the other side within changed_neighbour_radius_m and at least
+  // changed_partner_min_fraction of its compared points contradict (it must disagree a little
+  // itself: a car that stayed, flagged wrongly on one side, keeps its other copy).
+  void PartnersOfChanged(std::vector<DynamicDetectionResult::ExaminedObject>* examined) {
+    if (config_.changed_partner_min_fraction >= config_.changed_min_fraction) return;
+    std::vector<std::uint8_t> changed_point[2];
+    for (int s : {kHistory, kCurrent}) changed_point[s].assign(sides_[s].points.size(), 0);
+    for (const auto& object : *examined) {
+      if (!object.changed) continue;
+      for (std::uint32_t i : object.points) changed_point[object.side][i] = 1;
+    }
+    std::vector<std::uint32_t> neighbours;
+    for (auto& object : *examined) {
+      if (object.changed || object.compared < config_.changed_min_compared ||
+          object.off_surface < config_.changed_partner_min_fraction * object.compared) {
+        continue;
+      }
+      const int other = 1 - object.side;
+      for (std::uint32_t i : object.points) {
+        indices_[other]->Nearest(sides_[object.side].points[i], 4,
+                                 config_.changed_neighbour_radius_m, &neighbours);
+        if (std::any_of(neighbours.begin(), neighbours.end(),
+                        [&](std::uint32_t j) { return changed_point[other][j] != 0; })) {
+          object.changed = object.by_partner = true;
+          break;
+        }
+      }
+    }
+  }
+
+  // The points of side s's changed objects, sorted.
+  static std::vector<std::uint32_t> ChangedPoints(
+      int s, const std::vector<DynamicDetectionResult::ExaminedObject>& examined) {
+    std::vector<std::uint32_t> changed;
+    for (const auto& object : examined) {
+      if (object.side == s && object.changed) {
+        changed.insert(changed.end(), object.points.begin(), object.points.end());
+      }
+    }
     std::sort(changed.begin(), changed.end());
+    changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
     return changed;
   }
 
@@ -867,10 +911,12 @@ Status DynamicDetectionConfig::Validate() const {
   }
   if (!std::isfinite(changed_min_planar_fraction) || changed_min_planar_fraction < 0.0 ||
       changed_min_planar_fraction > 1.0 || !std::isfinite(changed_min_fraction) ||
-      changed_min_fraction <= 0.0 || changed_min_fraction > 1.0) {
+      changed_min_fraction <= 0.0 || changed_min_fraction > 1.0 ||
+      !std::isfinite(changed_partner_min_fraction) || changed_partner_min_fraction < 0.0 ||
+      changed_partner_min_fraction > 1.0) {
     return Status::Error(
-        "dynamic_detection.changed_min_planar_fraction must be in [0, 1] and "
-        "changed_min_fraction in (0, 1]");
+        "dynamic_detection.changed_min_planar_fraction and changed_partner_min_fraction must "
+        "be in [0, 1] and changed_min_fraction in (0, 1]");
   }
   return Status::Ok();
 }
@@ -998,11 +1044,13 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   result.current_dynamic = pair.DetectDynamic(kCurrent);
   clock(&stage.dynamic_s);
   if (config_.changed_objects_enabled) {
+    for (int s : {kHistory, kCurrent}) pair.ExamineObjects(s, &result.examined_objects);
+    pair.PartnersOfChanged(&result.examined_objects);
     for (int s : {kHistory, kCurrent}) {
       std::vector<std::uint32_t>& dynamic =
           s == kHistory ? result.history_dynamic : result.current_dynamic;
       const std::vector<std::uint32_t> changed =
-          pair.ChangedObjects(s, &result.examined_objects);
+          PairDetection::ChangedPoints(s, result.examined_objects);
       std::vector<std::uint32_t> merged;
       merged.reserve(dynamic.size() + changed.size());
       std::set_union(dynamic.begin(), dynamic.end(), changed.begin(), changed.end(),

@@ -144,6 +144,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "changed_compare_range_m", &m.dynamics.changed_compare_range_m},
       {"low_dynamics", "changed_surface_distance_m", &m.dynamics.changed_surface_distance_m},
       {"low_dynamics", "changed_min_fraction", &m.dynamics.changed_min_fraction},
+      {"low_dynamics", "changed_partner_min_fraction", &m.dynamics.changed_partner_min_fraction},
       {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},
       {"map_update", "fuse_overlap_distance_m", &m.fusion.overlap_distance_m},
       {"map_update", "fuse_voxel_m", &m.fusion.voxel_m},

@@ -77,7 +77,8 @@ const char kUsage[] =
     "                     changed_grow_radius_m, changed_min_points, changed_max_extent_m,\n"
     "                     changed_max_bottom_m, changed_min_planar_fraction,\n"
     "                     changed_neighbour_radius_m, changed_surface_distance_m,\n"
-    "                     changed_min_compared, changed_min_fraction)\n";
+    "                     changed_min_compared, changed_min_fraction,\n"
+    "                     changed_partner_min_fraction)\n";
 
 constexpr int kCanopy = 6;
 constexpr int kMovingCar = 9;
@@ -441,6 +442,7 @@ int main(int argc, char** argv) {
       else if (key == "changed_surface_distance_m") config.changed_surface_distance_m = v;
       else if (key == "changed_min_compared") config.changed_min_compared = static_cast<int>(v);
       else if (key == "changed_min_fraction") config.changed_min_fraction = v;
+      else if (key == "changed_partner_min_fraction") config.changed_partner_min_fraction = v;
       else {
         std::fprintf(stderr, "dynamic_detection_benchmark: unknown --set key %s\n", key.c_str());
         return 2;
@@ -452,7 +454,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     // Per session, per submap, per point: 1 bit removed, 2 bit paired, 4 bit low observed,
-    // 8 bit within 2 m of the other submap.
+    // 8 bit within 2 m of the other submap; the changed-object step (step 5) in some pair:
+    // 16 bit within its compare range of both submaps' scan origins, 32 bit in an object it
+    // examined, 64 bit in an object it found changed.
     std::vector<std::vector<std::uint8_t>> flags[2];
     for (int s = 0; s < 2; ++s) {
       const SessionData& d = s == 0 ? H : C;
@@ -498,6 +502,8 @@ int main(int argc, char** argv) {
       for (int k = 0; k < StageTimes::kCount; ++k) stage_times[k].push_back(steps[k].second);
       for (const auto& object : result.value().examined_objects) {
         examined.push_back({object, object.side == 0 ? h : c});
+        auto& marks = flags[object.side][object.side == 0 ? h : c];
+        for (std::uint32_t i : object.points) marks[i] |= object.changed ? 32 | 64 : 32;
       }
       mending += result.value().current_mending.size();
       for (std::uint32_t i : result.value().history_dynamic) flags[0][h][i] |= 1;
@@ -513,10 +519,21 @@ int main(int argc, char** argv) {
         }
         core::StatusOr<core::PointIndex> other_index = core::PointIndex::Create(other_world);
         std::map<std::uint32_t, bool> observed;
-        std::vector<Eigen::Vector3d> other_origins;
+        std::vector<Eigen::Vector3d> other_origins, own_origins;
         for (const core::SubmapScanRecord& scan : other.submaps[theirs].scans) {
           other_origins.push_back(other.T_world_submap[theirs] * scan.T_submap_sensor.translation());
         }
+        for (const core::SubmapScanRecord& scan : self.submaps[mine].scans) {
+          own_origins.push_back(self.T_world_submap[mine] * scan.T_submap_sensor.translation());
+        }
+        const double compare_sq =
+            config.changed_compare_range_m * config.changed_compare_range_m;
+        auto near_any = [&](const std::vector<Eigen::Vector3d>& origins, const Eigen::Vector3d& p) {
+          for (const Eigen::Vector3d& o : origins) {
+            if ((o - p).squaredNorm() <= compare_sq) return true;
+          }
+          return false;
+        };
         for (std::size_t i = 0; i < self.submaps[mine].points.size(); ++i) {
           std::uint8_t& f = flags[s][mine][i];
           const Eigen::Vector3d p = self.T_world_submap[mine] * self.submaps[mine].points[i];
@@ -539,6 +556,7 @@ int main(int argc, char** argv) {
               it = observed.emplace(id, ObservedPlace(objects[id], other_index.value(), 0.3, 5)).first;
             }
             if (it->second) f |= 4;
+            if (near_any(own_origins, p) && near_any(other_origins, p)) f |= 16;
           }
         }
       }
@@ -546,6 +564,10 @@ int main(int argc, char** argv) {
     long static_all = 0, static_kept = 0, static_near = 0, static_near_kept = 0;
     long canopy = 0, canopy_kept = 0, low = 0, low_removed = 0, high = 0, high_removed = 0;
     long low_unobserved = 0, unlabelled = 0, low_replaced = 0, low_replaced_removed = 0;
+    // Replaced low-dynamic points by what the changed-object step did with them: out of its
+    // compare range, in range but in no examined object (rejected by size or shape, or too few
+    // points), examined and not found changed, found changed; {points, removed} each.
+    long replaced_by_step5[4][2] = {};
     std::map<std::uint32_t, std::pair<long, long>> vacated_objects;
     // Vacated low-dynamic points by height above their object's bottom (0.25 m bins).
     constexpr int kHeightBins = 12;
@@ -571,6 +593,9 @@ int main(int argc, char** argv) {
               if (is_replaced(d.objects[m][i])) {
                 ++low_replaced;
                 low_replaced_removed += removed;
+                const int k = (f & 64) ? 3 : (f & 32) ? 2 : (f & 16) ? 1 : 0;
+                ++replaced_by_step5[k][0];
+                replaced_by_step5[k][1] += removed;
               } else if (per_object) {
                 const std::uint32_t id = d.objects[m][i];
                 auto& counts = vacated_objects[id];
@@ -628,7 +653,8 @@ int main(int argc, char** argv) {
                     truth.c_str(),
                     e.object.points.size(), e.object.off_surface, e.object.compared,
                     pct(e.object.off_surface, e.object.compared), e.object.seen_through,
-                    e.object.changed ? ": CHANGED" : "");
+                    e.object.changed ? (e.object.by_partner ? ": CHANGED (partner)" : ": CHANGED")
+                                     : "");
       }
     }
     std::printf("  changed-object step: examined objects by truth (majority label): ");
@@ -645,6 +671,12 @@ int main(int argc, char** argv) {
                 pct(low_replaced_removed, low_replaced), low_replaced_removed, low_replaced,
                 pct(low_removed - low_replaced_removed, low - low_replaced),
                 low_removed - low_replaced_removed, low - low_replaced);
+    std::printf("    replaced points by the changed-object step (removed/all): out of its "
+                "compare range %ld/%ld, in range but in no examined object %ld/%ld, examined "
+                "and not changed %ld/%ld, changed %ld/%ld\n",
+                replaced_by_step5[0][1], replaced_by_step5[0][0], replaced_by_step5[1][1],
+                replaced_by_step5[1][0], replaced_by_step5[2][1], replaced_by_step5[2][0],
+                replaced_by_step5[3][1], replaced_by_step5[3][0]);
     if (per_object) {
       std::printf("    vacated points by height above the object's bottom (0.25 m bins, removed/all):");
       for (int b = 0; b < kHeightBins; ++b) {
