@@ -441,6 +441,7 @@ TEST(DynamicDetectionTest, ShorterCarInTheSlotOfAChangedCarIsItsPartner) {
   ASSERT_FALSE(shorter_car->changed);
   ASSERT_GE(shorter_car->compared, off.changed_min_compared);
   ASSERT_GT(fraction, 0.02);
+  ASSERT_LT(fraction + 0.02, off.changed_min_fraction);  // else the control below is the off rule
   const int shorter_points = CountLabel(current.labels, kCar);
   EXPECT_LT(CountLabel(current.labels, alone.current_dynamic, kCar, true), 0.5 * shorter_points);
 
@@ -454,6 +455,7 @@ TEST(DynamicDetectionTest, ShorterCarInTheSlotOfAChangedCarIsItsPartner) {
   EXPECT_GE(CountLabel(current.labels, with.current_dynamic, kCar, true), 0.9 * shorter_points);
   EXPECT_LE(CountLabel(current.labels, with.current_dynamic, kCar, false), 3);
   // The longer car is changed by itself, not by the rule.
+  ASSERT_NE(car_object(with, 0), nullptr);
   EXPECT_FALSE(car_object(with, 0)->by_partner);
 
   partner.changed_partner_min_fraction = fraction + 0.02;  // it agrees too well: stays
@@ -781,6 +783,15 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
   config.far_range_m = std::nan("");
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  for (double bad : {-0.1, 1.5, std::nan("")}) {
+    config = DynamicDetectionConfig();
+    config.changed_partner_min_fraction = bad;
+    EXPECT_FALSE(DynamicDetector::Create(config).ok()) << bad;
+  }
+  config.changed_partner_min_fraction = 0.0;  // the bounds themselves are valid
+  EXPECT_TRUE(DynamicDetector::Create(config).ok());
+  config.changed_partner_min_fraction = 1.0;
+  EXPECT_TRUE(DynamicDetector::Create(config).ok());
 
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());
   ASSERT_TRUE(detector.ok());

@@ -315,15 +315,18 @@ def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RAN
     """Where the dynamic-removal figures come from (a diagnosis, next to the totals).
 
     'by_range': per band of the distance to the path (band i is [bands[i], bands[i+1]), the last
-    one open), SA and the DA of the low- and high-dynamic points with their counts.
+    one open), SA and the DA of the low- and high-dynamic points with their counts; points with
+    no finite distance (no truth trajectory) are in no band, and with none at all the list is
+    empty.
     'low_by_presence': per set of map sessions a low-dynamic object is present in, the DA of its
     points (e.g. ('s00',): in the first session only, gone later). Undefined ratios are None.
     """
     static, low, high = category == STATIC, category == LOW, category == HIGH
+    finite = np.isfinite(path_distance)
     by_range = []
-    for i, lo in enumerate(bands):
+    for i, lo in enumerate(bands if finite.any() else ()):
         hi = bands[i + 1] if i + 1 < len(bands) else None
-        band = (path_distance >= lo) & (path_distance < hi if hi is not None else True)
+        band = finite & (path_distance >= lo) & (path_distance < hi if hi is not None else True)
         by_range.append({
             'from_m': float(lo), 'to_m': None if hi is None else float(hi),
             'sa': _ratio(np.sum(kept & static & band), np.sum(static & band)),

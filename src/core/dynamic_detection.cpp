@@ -420,7 +420,8 @@ class PairDetection {
   // Step 5, partners: two different objects in one place are both changed (the other car in
   // the slot is in neither session's place of the first). An examined object that is not
   // changed by its own comparison becomes changed when one of its points has a point of an
-  // object changed on the other side within changed_neighbour_radius_m and at least
+  // object changed on the other side among its 4 nearest other-side points within
+  // changed_neighbour_radius_m, and at least
   // changed_partner_min_fraction of its compared points contradict (it must disagree a little
   // itself: a car that stayed, flagged wrongly on one side, keeps its other copy).
   void PartnersOfChanged(std::vector<DynamicDetectionResult::ExaminedObject>* examined) {

@@ -455,8 +455,9 @@ int main(int argc, char** argv) {
     }
     // Per session, per submap, per point: 1 bit removed, 2 bit paired, 4 bit low observed,
     // 8 bit within 2 m of the other submap; the changed-object step (step 5) in some pair:
-    // 16 bit within its compare range of both submaps' scan origins, 32 bit in an object it
-    // examined, 64 bit in an object it found changed.
+    // 16 bit within its compare range of both submaps' scan origins (every scan origin and
+    // every height: the detector also needs the point above its ground), 32 bit in an object
+    // it examined, 64 bit in an object it found changed.
     std::vector<std::vector<std::uint8_t>> flags[2];
     for (int s = 0; s < 2; ++s) {
       const SessionData& d = s == 0 ? H : C;
@@ -526,27 +527,18 @@ int main(int argc, char** argv) {
         for (const core::SubmapScanRecord& scan : self.submaps[mine].scans) {
           own_origins.push_back(self.T_world_submap[mine] * scan.T_submap_sensor.translation());
         }
-        const double compare_sq =
-            config.changed_compare_range_m * config.changed_compare_range_m;
-        auto near_any = [&](const std::vector<Eigen::Vector3d>& origins, const Eigen::Vector3d& p) {
+        auto near_any = [](const std::vector<Eigen::Vector3d>& origins, const Eigen::Vector3d& p,
+                           double radius_m) {
           for (const Eigen::Vector3d& o : origins) {
-            if ((o - p).squaredNorm() <= compare_sq) return true;
+            if ((o - p).squaredNorm() <= radius_m * radius_m) return true;
           }
           return false;
         };
+        const double compare_m = config.changed_compare_range_m;
         for (std::size_t i = 0; i < self.submaps[mine].points.size(); ++i) {
           std::uint8_t& f = flags[s][mine][i];
           const Eigen::Vector3d p = self.T_world_submap[mine] * self.submaps[mine].points[i];
-          if (eval_range > 0.0) {
-            bool in_range = false;
-            for (const Eigen::Vector3d& o : other_origins) {
-              if ((o - p).squaredNorm() <= eval_range * eval_range) {
-                in_range = true;
-                break;
-              }
-            }
-            if (!in_range) continue;
-          }
+          if (eval_range > 0.0 && !near_any(other_origins, p, eval_range)) continue;
           f |= 2;
           if (other_index.value().CountWithin(p, 2.0, 1) > 0) f |= 8;
           const std::uint32_t id = self.objects[mine][i];
@@ -556,7 +548,9 @@ int main(int argc, char** argv) {
               it = observed.emplace(id, ObservedPlace(objects[id], other_index.value(), 0.3, 5)).first;
             }
             if (it->second) f |= 4;
-            if (near_any(own_origins, p) && near_any(other_origins, p)) f |= 16;
+            if (near_any(own_origins, p, compare_m) && near_any(other_origins, p, compare_m)) {
+              f |= 16;
+            }
           }
         }
       }
@@ -565,8 +559,9 @@ int main(int argc, char** argv) {
     long canopy = 0, canopy_kept = 0, low = 0, low_removed = 0, high = 0, high_removed = 0;
     long low_unobserved = 0, unlabelled = 0, low_replaced = 0, low_replaced_removed = 0;
     // Replaced low-dynamic points by what the changed-object step did with them: out of its
-    // compare range, in range but in no examined object (rejected by size or shape, or too few
-    // points), examined and not found changed, found changed; {points, removed} each.
+    // compare range, in range but in no examined object (ground-level parts, too few points,
+    // rejected by size or shape), examined and not found changed, found changed; {points,
+    // removed} each.
     long replaced_by_step5[4][2] = {};
     std::map<std::uint32_t, std::pair<long, long>> vacated_objects;
     // Vacated low-dynamic points by height above their object's bottom (0.25 m bins).

@@ -223,3 +223,12 @@ def test_ground_truth_gives_path_distances_and_presence(synthetic_dirs):
     assert sum(r['low_points'] for r in b['by_range']) == E['low_points']
     assert sum(r['static_points'] for r in b['by_range']) == E['static_points']
     assert b['low_by_presence'][0]['da'] == pytest.approx(E['low_da'])
+
+
+def test_breakdown_without_trajectories_has_no_range_bands():
+    category = np.array([dynamics.STATIC, dynamics.LOW])
+    b = dynamics.breakdown(category, np.array([True, False]), np.full(2, np.inf),
+                           np.array([1, 2]), {2: ('s00',)})
+    assert b['by_range'] == []
+    assert b['low_by_presence'] == [{'present_in': ['s00'], 'objects': 1, 'points': 1,
+                                     'da': 1.0}]

@@ -16,3 +16,19 @@ def test_clean_makes_strict_json():
 def test_table_format():
     assert report._table(['a', 'b'], [[1, 2]]) == '| a | b |\n|---|---|\n| 1 | 2 |'
     assert report._fmt(None) == '-' and report._fmt(0.12345) == '0.123'
+
+
+def test_breakdown_tables():
+    assert report._breakdown_tables(None) == []
+    b = {'by_range': [{'from_m': 0.0, 'to_m': 10.0, 'sa': 0.5, 'static_points': 2,
+                       'low_da': None, 'low_points': 0, 'high_da': 1.0, 'high_points': 1},
+                      {'from_m': 40.0, 'to_m': None, 'sa': None, 'static_points': 0,
+                       'low_da': 0.25, 'low_points': 4, 'high_da': None, 'high_points': 0}],
+         'low_by_presence': [{'present_in': [], 'objects': 1, 'points': 3, 'da': None},
+                             {'present_in': ['s00', 's01'], 'objects': 2, 'points': 5,
+                              'da': 0.4}]}
+    text = '\n'.join(report._breakdown_tables(b))
+    assert '| 0-10 | 50.00 | 2 | - | 0 | 100.00 | 1 |' in text
+    assert '| 40- | - | 0 | 25.00 | 4 | - | 0 |' in text
+    assert '| - | 1 | 3 | - |' in text
+    assert '| s00 + s01 | 2 | 5 | 40.00 |' in text

@@ -223,8 +223,9 @@ struct DynamicDetectionConfig {
   int changed_min_compared = 15;
   double changed_min_fraction = 0.4;
   /// Partners: an examined object that its own comparison leaves unchanged becomes changed
-  /// when it touches (a point within changed_neighbour_radius_m) an object changed on the
-  /// other side and at least this fraction [0, 1] of its compared points contradict: two
+  /// when it touches an object changed on the other side (a point of that object is among
+  /// the 4 nearest other-side points within changed_neighbour_radius_m of one of its points)
+  /// and at least this fraction [0, 1] of its compared points contradict: two
   /// different objects in one place are both absent from the other session. A value of
   /// changed_min_fraction or more turns the rule off. Session 29, pair benchmark (`campus`
   /// s00-s01, true origins, guard on, scored within 25 m), seed 1 / seed 2, off -> 0.3:
