@@ -455,13 +455,15 @@ TEST(DynamicDetectionTest, ShorterCarInTheSlotOfAChangedCarIsItsPartner) {
   EXPECT_GE(CountLabel(current.labels, with.current_dynamic, kCar, true), 0.9 * shorter_points);
   EXPECT_LE(CountLabel(current.labels, with.current_dynamic, kCar, false), 3);
   // The longer car is changed by itself, not by the rule.
-  ASSERT_NE(car_object(with, 0), nullptr);
-  EXPECT_FALSE(car_object(with, 0)->by_partner);
+  const auto* longer_with = car_object(with, 0);
+  ASSERT_NE(longer_with, nullptr);
+  EXPECT_FALSE(longer_with->by_partner);
 
   partner.changed_partner_min_fraction = fraction + 0.02;  // it agrees too well: stays
   const DynamicDetectionResult strict = RunDetector(history, current, partner);
-  ASSERT_NE(car_object(strict, 1), nullptr);
-  EXPECT_FALSE(car_object(strict, 1)->changed);
+  const auto* shorter_strict = car_object(strict, 1);
+  ASSERT_NE(shorter_strict, nullptr);
+  EXPECT_FALSE(shorter_strict->changed);
 }
 
 // The same car in both sessions (sampled from other places, different noise) is static, and

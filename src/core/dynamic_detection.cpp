@@ -421,9 +421,9 @@ class PairDetection {
   // the slot is in neither session's place of the first). An examined object that is not
   // changed by its own comparison becomes changed when one of its points has a point of an
   // object changed on the other side among its 4 nearest other-side points within
-  // changed_neighbour_radius_m, and at least
-  // changed_partner_min_fraction of its compared points contradict (it must disagree a little
-  // itself: a car that stayed, flagged wrongly on one side, keeps its other copy).
+  // changed_neighbour_radius_m, and at least changed_partner_min_fraction of its compared
+  // points contradict (it must disagree a little itself: a car that stayed, flagged wrongly on
+  // one side, keeps its other copy).
   void PartnersOfChanged(std::vector<DynamicDetectionResult::ExaminedObject>* examined) {
     if (config_.changed_partner_min_fraction >= config_.changed_min_fraction) return;
     std::vector<std::uint8_t> changed_point[2];
@@ -451,7 +451,8 @@ class PairDetection {
     }
   }
 
-  // The points of side s's changed objects, sorted.
+  // The points of side s's changed objects, sorted (the objects of one side are disjoint:
+  // ExamineObjects takes every point into one cluster at most).
   static std::vector<std::uint32_t> ChangedPoints(
       int s, const std::vector<DynamicDetectionResult::ExaminedObject>& examined) {
     std::vector<std::uint32_t> changed;
@@ -461,7 +462,6 @@ class PairDetection {
       }
     }
     std::sort(changed.begin(), changed.end());
-    changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
     return changed;
   }
 

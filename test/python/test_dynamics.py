@@ -60,11 +60,20 @@ def test_known_kept_and_removed_points():
     assert kept.sum() == n - 10 + 30
 
 
-def test_synthetic_case_figures(synthetic_dirs):
+def _synthetic_inputs(synthetic_dirs):
+    """(map_dir, truth, names, truth trajectories, T_map_world) of the synthetic case."""
     map_dir, truth = io.MapDir(synthetic_dirs[0]), io.Truth(synthetic_dirs[1])
     names = {n: n for n in map_dir.session_names}
     trajectories = {n: truth.trajectory(n) for n in names}
-    t_map_world = tr.inverse(trajectories['s00'].poses[0])
+    return map_dir, truth, names, trajectories, tr.inverse(trajectories['s00'].poses[0])
+
+
+def _active_map_points(map_dir):
+    return np.vstack([s.load_points() for s in map_dir.submaps if s.status == 'active'])
+
+
+def test_synthetic_case_figures(synthetic_dirs):
+    map_dir, truth, names, trajectories, t_map_world = _synthetic_inputs(synthetic_dirs)
     gt = dynamics.ground_truth(truth, map_dir.session_names, names, trajectories, t_map_world,
                                30.0, 0.1, 60.0)
     points, labels, ids, category = gt.points, gt.labels, gt.object_ids, gt.category
@@ -76,7 +85,7 @@ def test_synthetic_case_figures(synthetic_dirs):
     assert np.sum(category == dynamics.STATIC) == E['static_points']
     assert np.sum(category == dynamics.LOW) == E['low_points']
     assert set(ids[category == dynamics.LOW].tolist()) == {17}
-    map_points = np.vstack([s.load_points() for s in map_dir.submaps if s.status == 'active'])
+    map_points = _active_map_points(map_dir)
     figures, _ = dynamics.evaluate(points, labels, category, map_points, 0.2)
     assert figures['static']['sa'] == pytest.approx(E['static_sa'])
     assert figures['canopy']['sa'] == pytest.approx(E['canopy_sa'])
@@ -97,10 +106,7 @@ def test_deduplicate_one_point_per_voxel_and_object():
 
 
 def test_evaluation_range_excludes_far_points(synthetic_dirs):
-    map_dir, truth = io.MapDir(synthetic_dirs[0]), io.Truth(synthetic_dirs[1])
-    names = {n: n for n in map_dir.session_names}
-    trajectories = {n: truth.trajectory(n) for n in names}
-    t_map_world = tr.inverse(trajectories['s00'].poses[0])
+    map_dir, truth, names, trajectories, t_map_world = _synthetic_inputs(synthetic_dirs)
     # Within 5 m of a scan position: only the moving car (3.1 m) and pedestrian (3.2-4.6 m);
     # wall (8 m), canopy, parked cars (5.06 m) and the far car are excluded.
     gt = dynamics.ground_truth(truth, map_dir.session_names, names, trajectories, t_map_world,
@@ -206,10 +212,7 @@ def test_breakdown_by_range_and_presence():
 
 
 def test_ground_truth_gives_path_distances_and_presence(synthetic_dirs):
-    map_dir, truth = io.MapDir(synthetic_dirs[0]), io.Truth(synthetic_dirs[1])
-    names = {n: n for n in map_dir.session_names}
-    trajectories = {n: truth.trajectory(n) for n in names}
-    t_map_world = tr.inverse(trajectories['s00'].poses[0])
+    map_dir, truth, names, trajectories, t_map_world = _synthetic_inputs(synthetic_dirs)
     gt = dynamics.ground_truth(truth, map_dir.session_names, names, trajectories, t_map_world,
                                30.0, 0.1, 60.0)
     positions = tr.transform_points(t_map_world,
@@ -217,7 +220,7 @@ def test_ground_truth_gives_path_distances_and_presence(synthetic_dirs):
     expected = np.min(np.linalg.norm(gt.points[:, None, :] - positions[None], axis=2), axis=1)
     np.testing.assert_allclose(gt.path_distance, expected, atol=1e-9)
     assert gt.low_presence == {17: ('s00',)}  # car 17: in s00 only, s01 saw its place empty
-    map_points = np.vstack([s.load_points() for s in map_dir.submaps if s.status == 'active'])
+    map_points = _active_map_points(map_dir)
     figures, kept = dynamics.evaluate(gt.points, gt.labels, gt.category, map_points, 0.2)
     b = dynamics.breakdown(gt.category, kept, gt.path_distance, gt.object_ids, gt.low_presence)
     assert sum(r['low_points'] for r in b['by_range']) == E['low_points']
