@@ -367,6 +367,32 @@ TEST_F(InterSessionMatcherTest, ASubmapWithoutVotesIsPlacedByItsNeighboursLoop) 
   }
 }
 
+// Every record rejected for disagreeing with its reference is listed as a dependent loop (for
+// the merger's second judgement), with that record, its pose, and an accepted reference.
+// Returns how many are listed.
+std::size_t ExpectDependentLoopsListed(const InterSessionMatchResult& r) {
+  std::set<std::size_t> listed;
+  for (const DependentLoop& d : r.dependent) {
+    if (d.record >= r.records.size() || d.reference_record >= r.records.size()) {
+      ADD_FAILURE() << "dependent loop with a record index out of range";
+      continue;
+    }
+    listed.insert(d.record);
+    const LoopRecord& rec = r.records[d.record];
+    EXPECT_EQ(rec.status, LoopStatus::kRejected);
+    EXPECT_NE(rec.reason.find("disagrees with the loop of submap"), std::string::npos);
+    EXPECT_EQ(rec.current_submap, d.loop.current_submap);
+    EXPECT_TRUE(rec.T_history_current.isApprox(d.loop.T_history_current));
+    EXPECT_EQ(r.records[d.reference_record].status, LoopStatus::kAccepted);
+  }
+  std::size_t disagreeing = 0;
+  for (const LoopRecord& rec : r.records) {
+    disagreeing += rec.reason.find("disagrees with the loop of submap") != std::string::npos;
+  }
+  EXPECT_EQ(listed.size(), disagreeing);
+  return listed.size();
+}
+
 TEST_F(InterSessionMatcherTest, ASequenceLoopThatDisagreesWithItsNeighbourIsRejected) {
   // The odometry puts submap 1 3 m from where it is: registration finds the true place, which
   // disagrees with the neighbour's loop by more than the bounds (0.5 m + 1 % of 20 m).
@@ -382,6 +408,7 @@ TEST_F(InterSessionMatcherTest, ASequenceLoopThatDisagreesWithItsNeighbourIsReje
     disagreeing += rec.reason.find("disagrees") != std::string::npos;
   }
   EXPECT_GE(disagreeing, 1);
+  ExpectDependentLoopsListed(r);
 }
 
 TEST_F(InterSessionMatcherTest, FusedHistorySubmapsAreSkipped) {
@@ -477,6 +504,7 @@ TEST_F(InterSessionMatcherTest, AGuidedCandidateThatDisagreesWithItsSubmapsLoopI
     refused += rec.reason.find("that guided it") != std::string::npos;
   }
   EXPECT_GE(refused, 1) << "the guided registration itself refuses the shifted submap";
+  EXPECT_GE(ExpectDependentLoopsListed(r), static_cast<std::size_t>(refused));
 }
 
 TEST(InterSessionMatcherConfigTest, ValidatesFields) {

@@ -429,6 +429,11 @@ void RegisterAgainstReferences(Jobs* jobs,
       record.reason = "disagrees with the loop of submap " +
                       std::to_string(current.submaps[ref.current].id) + " that " + relation +
                       " it";
+      DependentLoop dependent;
+      dependent.loop = r.loop;
+      dependent.record = r.record;
+      dependent.reference_record = ref.record;
+      result->dependent.push_back(dependent);
     }
   }
 }

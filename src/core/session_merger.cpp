@@ -11,6 +11,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "multisession_mapper/core/dependent_loops.h"
 #include "multisession_mapper/core/dynamic_propagation.h"
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/point_index.h"
@@ -68,6 +69,7 @@ std::string ChangeLogYaml(const MergeReport& report, const SessionRecord& record
   out << YAML::Key << "inter_session_loops" << YAML::Value << report.inter_loops;
   out << YAML::Key << "sequence_loops" << YAML::Value << report.sequence_loops;
   out << YAML::Key << "proximity_loops" << YAML::Value << report.proximity_loops;
+  out << YAML::Key << "rejudged_loops" << YAML::Value << report.rejudged_loops;
   out << YAML::Key << "submaps_added" << YAML::Value << YAML::Flow << added;
   out << YAML::Key << "submaps_fused" << YAML::Value << YAML::Flow << fused;
   out << YAML::Key << "points_removed" << YAML::Value << report.points_removed;
@@ -286,6 +288,33 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   Status s = optimise();
   if (!s.ok()) return s;
 
+  // ---- Loops that only disagreed with a reference the joint graph rejected: judged again ----
+  // (dependent_loops.h); the accepted ones go into the graph like the others, whose robust
+  // kernel can still reject them.
+  DependentLoopBounds dependent_bounds;
+  dependent_bounds.max_translation_m = config_.matching.consistency.max_translation_m;
+  dependent_bounds.max_rotation_rad = config_.matching.consistency.max_rotation_rad;
+  const std::vector<std::size_t> rejudged = RejudgeDependentLoops(
+      m.dependent,
+      [&](const InterSessionLoop& loop, Pose3* T_history_current) {
+        const auto it = current_by_id.find(loop.current_submap);
+        if (it == current_by_id.end() || loop.history_index >= map->submaps.size()) return false;
+        *T_history_current = graph.NodePose(history_node(loop.history_index)).inverse() *
+                             graph.NodePose(current_node(it->second));
+        return true;
+      },
+      dependent_bounds, &records);
+  for (std::size_t i : rejudged) {
+    const DependentLoop& d = m.dependent[i];
+    s = add_loop_edge(current_by_id.at(d.loop.current_submap), d.loop.history_index,
+                      d.loop.T_history_current, inter_information, d.record);
+    if (!s.ok()) return s;
+  }
+  if (!rejudged.empty()) {
+    s = optimise();
+    if (!s.ok()) return s;
+  }
+
   // ---- Second loop search by proximity, now that both share the map frame. ----
   StatusOr<SubmapRegistration> registration =
       SubmapRegistration::Create(config_.proximity.registration);
@@ -416,6 +445,9 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
         r.kind == LoopKind::kInterSequence && r.status == LoopStatus::kAccepted;
     report.proximity_loops +=
         r.kind == LoopKind::kInterProximity && r.status == LoopStatus::kAccepted;
+  }
+  for (std::size_t i : rejudged) {
+    report.rejudged_loops += records[m.dependent[i].record].status == LoopStatus::kAccepted;
   }
   for (const auto& [c, h] : pair_set) pairs.push_back({c, h});
 

@@ -120,10 +120,25 @@ struct InterSessionLoop {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
+/// A registered loop rejected only because it disagreed with the accepted loop that guided or
+/// placed its registration (its reference: guided_candidates, sequence guidance). When the
+/// joint pose graph later rejects the reference, the merger judges such a loop again, against
+/// the optimised graph (SessionMerger): a wrong reference must not take its neighbours' correct
+/// loops down with it.
+struct DependentLoop {
+  InterSessionLoop loop;
+  std::size_t record = 0;            ///< index into InterSessionMatchResult::records
+  std::size_t reference_record = 0;  ///< the reference loop's index into records
+
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
 struct InterSessionMatchResult {
   /// Accepted loops (after registration and sequence consistency), then the sequence-guided
   /// ones.
   std::vector<InterSessionLoop, Eigen::aligned_allocator<InterSessionLoop>> loops;
+  /// Loops rejected only for disagreeing with their reference (see DependentLoop).
+  std::vector<DependentLoop, Eigen::aligned_allocator<DependentLoop>> dependent;
   /// Every candidate and undefined submap with its fate (kind kInter; sequence-guided
   /// candidates kInterSequence), for loops/<s>.csv.
   LoopRecords records;

@@ -2,7 +2,11 @@
 // first session defines the map frame (AddFirstSession). Every later session:
 //  1. inter-session loops without initial guess (InterSessionMatcher);
 //  2. joint pose graph: history submaps and the new session's submaps, intra-session edges,
-//     the inter-session loops (robust kernel); only the map's first submap is fixed;
+//     the inter-session loops (robust kernel); only the map's first submap is fixed. Loops the
+//     matcher rejected only for disagreeing with the neighbour's loop that placed them
+//     (DependentLoop) are judged again when the graph rejected that loop: accepted when they
+//     agree with the optimised graph within the sequence-consistency bounds, then optimised
+//     again (dependent_loops.h);
 //  3. a second, proximity-based loop search of every new submap against the history now that
 //     both share a frame, then a second optimisation;
 //  4. low-dynamic detection for every overlapping pair (DynamicDetector);
@@ -98,8 +102,11 @@ struct MergeReport {
   std::string session;
   bool first_session = false;
   std::size_t inter_loops = 0;      ///< accepted by place recognition + global registration
-  std::size_t sequence_loops = 0;   ///< accepted by sequence guidance (before the joint graph)
+  std::size_t sequence_loops = 0;   ///< accepted by sequence guidance
   std::size_t proximity_loops = 0;  ///< accepted by the second search
+  /// Of inter_loops and sequence_loops: accepted only when judged again against the joint
+  /// graph, after it rejected the loop they had disagreed with (DependentLoop).
+  std::size_t rejudged_loops = 0;
   std::size_t submaps_added = 0;    ///< new submaps kept as submaps
   std::size_t submaps_fused = 0;    ///< new submaps fused into history submaps
   std::size_t points_removed = 0;
