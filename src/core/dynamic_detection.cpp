@@ -54,14 +54,6 @@ struct Side {
   std::vector<Eigen::Vector3f> normals;
 };
 
-// Some origin lies within sqrt(range_sq) of p.
-bool NearAny(const PointVector& origins, const Eigen::Vector3d& p, double range_sq) {
-  for (const Eigen::Vector3d& o : origins) {
-    if ((o - p).squaredNorm() <= range_sq) return true;
-  }
-  return false;
-}
-
 PointVector ThinOrigins(const Submap& submap, const Pose3& T, double spacing_m) {
   PointVector kept;
   for (const SubmapScanRecord& scan : submap.scans) {
@@ -832,6 +824,13 @@ class PairDetection {
 };
 
 }  // namespace
+
+bool NearAny(const PointVector& origins, const Eigen::Vector3d& p, double range_sq) {
+  for (const Eigen::Vector3d& o : origins) {
+    if ((o - p).squaredNorm() <= range_sq) return true;
+  }
+  return false;
+}
 
 Status DynamicDetectionConfig::Validate() const {
   for (const auto& [name, value] :

@@ -527,18 +527,13 @@ int main(int argc, char** argv) {
         for (const core::SubmapScanRecord& scan : self.submaps[mine].scans) {
           own_origins.push_back(self.T_world_submap[mine] * scan.T_submap_sensor.translation());
         }
-        auto near_any = [](const std::vector<Eigen::Vector3d>& origins, const Eigen::Vector3d& p,
-                           double radius_m) {
-          for (const Eigen::Vector3d& o : origins) {
-            if ((o - p).squaredNorm() <= radius_m * radius_m) return true;
-          }
-          return false;
-        };
-        const double compare_m = config.changed_compare_range_m;
+        const double compare_sq = config.changed_compare_range_m * config.changed_compare_range_m;
         for (std::size_t i = 0; i < self.submaps[mine].points.size(); ++i) {
           std::uint8_t& f = flags[s][mine][i];
           const Eigen::Vector3d p = self.T_world_submap[mine] * self.submaps[mine].points[i];
-          if (eval_range > 0.0 && !near_any(other_origins, p, eval_range)) continue;
+          if (eval_range > 0.0 && !core::NearAny(other_origins, p, eval_range * eval_range)) {
+            continue;
+          }
           f |= 2;
           if (other_index.value().CountWithin(p, 2.0, 1) > 0) f |= 8;
           const std::uint32_t id = self.objects[mine][i];
@@ -548,7 +543,8 @@ int main(int argc, char** argv) {
               it = observed.emplace(id, ObservedPlace(objects[id], other_index.value(), 0.3, 5)).first;
             }
             if (it->second) f |= 4;
-            if (near_any(own_origins, p, compare_m) && near_any(other_origins, p, compare_m)) {
+            if (core::NearAny(own_origins, p, compare_sq) &&
+                core::NearAny(other_origins, p, compare_sq)) {
               f |= 16;
             }
           }

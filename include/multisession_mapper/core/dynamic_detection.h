@@ -289,6 +289,10 @@ struct DynamicDetectionResult {
   StageTimes stage;
 };
 
+/// Whether some point of `origins` (e.g. a submap's scan origins) lies within sqrt(range_sq)
+/// of `p` [m^2]: the range test of the steps above (and of dynamic_detection_benchmark).
+bool NearAny(const PointVector& origins, const Eigen::Vector3d& p, double range_sq);
+
 class DynamicDetector {
  public:
   static StatusOr<DynamicDetector> Create(const DynamicDetectionConfig& config);
