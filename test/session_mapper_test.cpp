@@ -159,7 +159,7 @@ TEST(SessionMapper, UpdateConfigAppliesToTheNextScanAndRefusesInvalidValues) {
   SessionMapperConfig changed;
   changed.submaps.max_translation_m = 5.0;
   changed.intra_loops.search_radius_m = 7.0;
-  changed.odometry.map_voxel_size_m = 0.9;
+  changed.odometry.map_voxel_size_m = 0.6;  // at most the registration voxel (0.75 m)
   ASSERT_TRUE(mapper.value().UpdateConfig(changed).ok());
   EXPECT_EQ(mapper.value().config().submaps.max_translation_m, 5.0);
   EXPECT_EQ(mapper.value().config().intra_loops.search_radius_m, 7.0);

@@ -104,6 +104,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"inter_session", "neighbour_distance_m", &m.matching.neighbour_distance_m},
       {"inter_session", "overlap_distance_m", &m.matching.registration.fine.overlap_distance_m},
       {"inter_session", "min_overlap_ratio", &m.matching.registration.fine.min_overlap_ratio},
+      {"inter_session", "min_structure_overlap_ratio",
+       &m.matching.registration.min_structure_overlap_ratio},
       {"inter_session", "consistency_max_translation_m", &m.matching.consistency.max_translation_m},
       {"inter_session", "consistency_max_rotation_rad", &m.matching.consistency.max_rotation_rad},
       {"inter_session", "consistency_min_group_size", &m.matching.consistency.min_group_size},
