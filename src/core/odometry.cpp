@@ -56,6 +56,11 @@ Status OdometryConfig::Validate() const {
     return Status::Error(
         "odometry.refine_min_translation_m / refine_min_rotation_rad must be >= 0");
   }
+  if (!std::isfinite(motion_prior_release_ratio) || motion_prior_release_ratio < 0.0 ||
+      motion_prior_release_ratio > 1.0) {
+    return Status::Error("odometry.motion_prior_release_ratio must be in [0, 1], got " +
+                         std::to_string(motion_prior_release_ratio));
+  }
   if (!std::isfinite(motion_prior_weight) || motion_prior_weight < 0.0) {
     return Status::Error("odometry.motion_prior_weight must be >= 0, got " +
                          std::to_string(motion_prior_weight));
@@ -176,6 +181,23 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   bool add_to_map = true;
   if (has_scan_ && !local_map_.empty()) {
     StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m);
+    // A poor fit with the prior: perhaps the motion model broke (a yaw-rate step), which the
+    // prior must not hold; try without it (see the config).
+    const double median_weight = RecentWeightMedian();
+    if (prior.weight > 0.0 && config_.motion_prior_release_ratio > 0.0 && median_weight > 0.0 &&
+        (!icp.ok() ||
+         icp.value().mean_weight < config_.motion_prior_release_ratio * median_weight)) {
+      result.motion_prior_retried = true;
+      const IcpTranslationPrior with_prior = prior;
+      prior.weight = 0.0;
+      StatusOr<IcpResult> free_icp = register_scan(result.prediction, max_distance_m, kernel_m);
+      if (free_icp.ok() && (!icp.ok() || free_icp.value().mean_weight > icp.value().mean_weight)) {
+        icp = std::move(free_icp);
+        result.motion_prior_released = true;
+      } else {
+        prior = with_prior;
+      }
+    }
     if (icp.ok()) {
       result.icp = icp.value();
       result.registered = true;
@@ -320,10 +342,18 @@ bool Odometry::TurnHypothesesTriggered(double mean_weight, double predicted_yaw_
   }
   if (config_.turn_hypothesis_trigger <= 0.0) return true;
   if (config_.turn_hypothesis_in_turns && InTurn(predicted_yaw_rate)) return true;
+  return mean_weight < config_.turn_hypothesis_trigger * RecentWeightMedian();
+}
+
+double Odometry::RecentWeightMedian() const {
+  if (recent_weights_.empty() ||
+      recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
+    return 0.0;
+  }
   std::vector<double> weights(recent_weights_.begin(), recent_weights_.end());
   const auto middle = weights.begin() + static_cast<std::ptrdiff_t>(weights.size() / 2);
   std::nth_element(weights.begin(), middle, weights.end());
-  return mean_weight < config_.turn_hypothesis_trigger * *middle;
+  return *middle;
 }
 
 // Why a window: with the velocity of the last interval only, an along-track pose error e_k

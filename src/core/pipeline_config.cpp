@@ -39,6 +39,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},
       {"odometry", "kernel_sigma_factor", &s.odometry.kernel_sigma_factor},
       {"odometry", "motion_prior_weight", &s.odometry.motion_prior_weight},
+      {"odometry", "motion_prior_release_ratio", &s.odometry.motion_prior_release_ratio},
       {"odometry", "turn_hypothesis_step_rad_s", &s.odometry.turn_hypothesis_step_rad_s},
       {"odometry", "turn_hypothesis_margin", &s.odometry.turn_hypothesis_margin},
       {"odometry", "turn_hypothesis_trigger", &s.odometry.turn_hypothesis_trigger},

@@ -102,17 +102,29 @@ struct OdometryConfig {
   /// lies along a direction adds up to 1 to the Hessian there). 0: none. Directions the pairs
   /// constrain with a Hessian eigenvalue well above it follow the pairs; weaker ones (along a
   /// straight road between parallel walls) stay near the prediction instead of following a
-  /// few biased pairs. Off by default, by measurement (session 21, `campus`, odometry alone,
-  /// aligned ATE of seed 1 s00 / s01 / s02, seed 2 s00 / s01 / s02): 0: 0.89 / 0.49 / 5.13,
-  /// 0.72 / 0.99 / 0.22 m; 30: 0.91 / 0.29 / 0.93, 0.55 / 3.59 / 0.19 m; 20: 0.73 / 2.90 /
-  /// 3.25, 0.54 / 1.28 / 0.20 m. The prior halves the median step error (0.022 -> 0.012 m
-  /// per scan) and removes the road's 0.3-0.5 m steps (seed 1 s02), but which of the
-  /// simulator's turns fail (the yaw rate steps from 0 to 0.4 rad/s in one scan, see
-  /// issue 6) changes with it, and the 3-session pipeline with 30 was worse on the whole
-  /// (seed 1: s02 map-frame ATE 0.76 -> 0.55 m, but static SA 78.6 -> 71.8 %; seed 2: 0 + 2 ->
-  /// 1 + 1 wrong submaps, 18 overlapping submaps of s01 missed). For data with long
-  /// featureless corridors and smooth motion (no yaw-rate steps) try 20-30.
-  double motion_prior_weight = 0.0;
+  /// few biased pairs. Alone (session 21) it halved the median step error and removed the
+  /// walled road's 0.3-0.5 m steps, but held the old yaw rate where the simulator steps it
+  /// (0 <-> 0.4 rad/s in one scan) and so failed other turns. On by default since session 32,
+  /// together with its release (below) and the triggered turn hypotheses: 3-session `campus`
+  /// pipeline, map-fit ATE s00 / s01 / s02, 0.75 m source voxel without / with the three:
+  /// seed 1 0.097 / 0.095 / 0.333 -> 0.088 / 0.097 / 0.177 m, seed 2 0.084 / 0.140 / 0.087 ->
+  /// 0.054 / 0.057 / 0.044 m, seed 3 0.097 / 0.105 / 0.105 -> 0.106 / 0.109 / 0.123 m; wrong
+  /// inter-session submaps over the three seeds 2 -> 0. With the prior alone: seed 3 had a
+  /// wrong submap in the sharp turn of s02 (see motion_prior_release_ratio).
+  double motion_prior_weight = 30.0;
+  /// With the prior on: a scan whose registration's mean kernel weight (IcpResult::
+  /// mean_weight) is below this times the median of the last `turn_hypothesis_window_scans`
+  /// registered scans' (after that many) is registered again without the prior, from the
+  /// prediction, and the better fit of the two (higher mean weight) is kept; when it is the
+  /// one without, the prior stays off for the rest of the scan (refined de-skew, hypotheses).
+  /// 0: never. Where the yaw rate steps within one scan, the scan is de-skewed with the old
+  /// rate, and the distorted sweep fits best with the rotation *and* a shift along the road
+  /// that the prior refuses, so the ICP kept the old yaw rate (`campus` seed 3 s02, the turn
+  /// at 528.9 s: estimated yaw steps -0.2, -0.3, -0.4, -0.3 deg where the truth turned -1.6,
+  /// -2.3, -2.3, -2.3; without the prior -1.7, -2.1, -2.3, -2.3; the fits' mean weight 0.15
+  /// against 0.26 and a median of 0.38 before the turn). 0.9 fires on 0.8 % of that session's
+  /// scans.
+  double motion_prior_release_ratio = 0.9;
   /// > 0: after the registration, also try yaw rates of the predicted one -/+ this [rad/s]
   /// (and 0 in a turn), each with the scan de-skewed at its own rate and registered from its
   /// own prediction; a hypothesis replaces the registration when its mean kernel weight
@@ -120,15 +132,16 @@ struct OdometryConfig {
   /// `turn_hypothesis_margin`. 0: off. For yaw rates that step within one scan (the campus
   /// simulator starts and ends its turns so): the prediction and its de-skew are then a
   /// whole step off, and an ICP hypothesis compared on the wrongly de-skewed scan loses
-  /// (issue 6). Off by default, by measurement (session 21, 0.4 rad/s, every scan): it
+  /// (issue 6). Session 21 (0.4 rad/s, every scan, no prior; off then, by measurement): it
   /// removes the slide behind seed 2's wrong submaps (s01 scans 4500-4560: 0.88 m -> 0.01 m)
   /// and seed 2's 3-session pipeline has 0 + 0 wrong submaps (was 0 + 2), rigidly aligned
   /// ATE 0.07 / 0.07 / 0.05 m (0.07 / 0.12 / 0.09); seed 1 s02 odometry alone 5.13 -> 1.27 m
   /// aligned. But seed 1 gets 1 + 0 wrong (0 + 0), the first submap of seed 2 ends up 1 deg
   /// tilted (the frame anchor refuses so large a correction; map-frame ATE 0.82 / 0.76 /
   /// 0.90 m, static SA 81 -> 57 %), and the odometry costs 2-3x the time (two more de-skews
-  /// and registrations per scan).
-  double turn_hypothesis_step_rad_s = 0.0;
+  /// and registrations per scan). On since session 32 (0.4 rad/s, trigger 0.9, 2 levels),
+  /// with the motion prior: see motion_prior_weight for the figures.
+  double turn_hypothesis_step_rad_s = 0.4;
   double turn_hypothesis_margin = 1.02;
   /// The hypotheses are tried only once `turn_hypothesis_window_scans` scans have been
   /// registered since the start or the last gap (never while starting up), and only for a
@@ -139,8 +152,11 @@ struct OdometryConfig {
   /// every scan had 7-10 % of them below the trigger. Seed 2 then has 0 + 0 wrong and 0
   /// missed submaps and rigidly aligned ATE 0.074 / 0.063 / 0.050 m, but the whole map sits
   /// 0.13 deg / 0.19 m off the first scan's frame (map-frame ATE 0.39 / 0.37 / 0.44 m, static
-  /// SA 67 %); seed 1 is worse than without them (see docs/status_details.md).
-  double turn_hypothesis_trigger = 0.0;
+  /// SA 67 %); seed 1 is worse than without them (see docs/status_details.md). Session 32,
+  /// with the motion prior and its release: 0.9 (`campus` seed 3 s02 alone, one-scan steps
+  /// off by more than 0.1 m / 0.5 deg: prior alone 4 / 10, with its release 14 / 8, with the
+  /// release and these hypotheses 2 / 1; without the prior 12 / 2).
+  double turn_hypothesis_trigger = 0.9;
   int turn_hypothesis_window_scans = 20;
   /// true: with a trigger, a scan predicted to turn faster than half of
   /// `turn_hypothesis_step_rad_s` tries the hypotheses whatever its fit (after the window):
@@ -156,8 +172,9 @@ struct OdometryConfig {
   /// in_turns, 2 levels) against the same without in_turns and with 1 level, ATE after the
   /// whole-map fit: seed 1 0.160 / 0.167 / 0.486 m (0.124 / 0.119 / 0.226), seed 2 0.067 /
   /// 0.066 / 0.055 m, 0 wrong (0.070 / 0.078 / 0.066 m, 1 wrong), seed 3 0.107 / 0.108 /
-  /// 0.129 m, 2 wrong (0.086 / 0.104 / 0.117 m, 3 wrong). Mixed, so 1 by default.
-  int turn_hypothesis_levels = 1;
+  /// 0.129 m, 2 wrong (0.086 / 0.104 / 0.117 m, 3 wrong). Mixed, so 1 then; 2 since session
+  /// 32 (with the prior's release and the 0.75 m source points, see motion_prior_weight).
+  int turn_hypothesis_levels = 2;
   double refine_min_translation_m = 0.02;
   double refine_min_rotation_rad = 0.004;
 
@@ -186,6 +203,10 @@ struct OdometryResult {
   bool turn_hypotheses_tried = false;
   /// true: one of them replaced the registration.
   bool turn_hypothesis_won = false;
+  /// true: the motion prior's fit was poor and the scan was registered again without it
+  /// (motion_prior_release_ratio); `motion_prior_released`: the fit without it was kept.
+  bool motion_prior_retried = false;
+  bool motion_prior_released = false;
   std::string message;
   /// Filtered scan, de-skewed, in the sensor frame at the stamp; all attributes kept.
   LidarScan deskewed_scan;
@@ -230,6 +251,9 @@ class Odometry {
   /// [rad/s], tries the turn hypotheses (see OdometryConfig::turn_hypothesis_trigger and
   /// turn_hypothesis_in_turns).
   bool TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const;
+  /// Median mean kernel weight of the last turn_hypothesis_window_scans registered scans;
+  /// 0 until that many were registered since the start or the last gap.
+  double RecentWeightMedian() const;
   /// Whether this yaw rate [rad/s] is a turn for the hypotheses: faster than half of
   /// turn_hypothesis_step_rad_s.
   bool InTurn(double yaw_rate) const;
