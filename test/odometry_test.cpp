@@ -80,7 +80,9 @@ TEST(OdometryTest, TracksFastVehicleInGentleTurns) {
             << e.max_rotation_rad / kDeg << " deg, final " << e.final_translation_m
             << " m, median " << Median(e.total_ms) << " ms/scan" << std::endl;
   EXPECT_GE(e.registered, static_cast<int>(e.total_ms.size()) - 1);  // all but the first
-  // Measured ~0.09 m / 0.35 deg peak (the roll sway is tracked with a lag), ~0.02 m final.
+  // Measured ~0.09 m / 0.35 deg peak (the roll sway is tracked with a lag), ~0.02 m final;
+  // with session 32's defaults (motion prior, its release, turn hypotheses) 0.061 m /
+  // 0.35 deg, 0.060 m final.
   EXPECT_LT(e.max_translation_m, 0.2);
   EXPECT_LT(e.max_rotation_rad, 0.7 * kDeg);
   EXPECT_LT(e.final_translation_m, 0.1);
@@ -92,7 +94,8 @@ TEST(OdometryTest, KeepsTrackInSharpTurns) {
             << e.max_rotation_rad / kDeg << " deg, final " << e.final_translation_m << " m"
             << std::endl;
   EXPECT_GE(e.registered, static_cast<int>(e.total_ms.size()) - 1);
-  // Measured 0.06 m / 0.44 deg (with the motion model of the last interval only, 0.4-0.5 m /
+  // Measured 0.06 m / 0.44 deg (session 32's defaults: 0.077 m / 0.41 deg, 0.067 m final;
+  // with the motion model of the last interval only, 0.4-0.5 m /
   // ~1 deg transient while the yaw rate ramps), a few cm once the turn is steady.
   EXPECT_LT(e.max_translation_m, 0.8);
   EXPECT_LT(e.max_rotation_rad, 2.0 * kDeg);
@@ -171,6 +174,7 @@ TEST(OdometryTest, TracksWithoutPerPointTime) {
   std::cout << "gentle turns without time: max error " << e.max_translation_m << " m, "
             << e.max_rotation_rad / kDeg << " deg" << std::endl;
   EXPECT_GE(e.registered, static_cast<int>(e.total_ms.size()) - 1);
+  // Measured with session 32's defaults: 0.185 m / 1.35 deg.
   EXPECT_LT(e.max_translation_m, 1.0);
   EXPECT_LT(e.max_rotation_rad, 3.0 * kDeg);
 }
@@ -343,6 +347,10 @@ TEST(OdometryTest, VelocityWindowDampsAlongTrackOscillationOnCampus) {
   ASSERT_TRUE(simulator.ok()) << simulator.status().message();
   OdometryConfig odometry_config;
   odometry_config.velocity_window_scans = 3;
+  // The window alone, as measured: the motion prior (default since session 32) holds the
+  // along-track motion by itself.
+  odometry_config.motion_prior_weight = 0.0;
+  odometry_config.turn_hypothesis_step_rad_s = 0.0;
   const SegmentErrors errors = CampusSegmentErrors(simulator.value(), 0, 0, 500, odometry_config);
   std::cout << "campus s00 scans 0-500: along-track speed error RMS " << errors.speed_rms_mps
             << " m/s, final rotation error " << errors.final_rotation_deg << " deg\n";
@@ -374,7 +382,7 @@ TEST(OdometryTest, MotionPriorHoldsTheTrackAlongAStraightWalledRoad) {
 }
 
 // Campus s02 seed 3, scans 5250-5370: a sharp right turn whose yaw rate steps 0 -> -0.4 rad/s
-// within the scan at 528.8 s and back at 532.8 s. With the motion prior on every scan, the
+// within the scan at 528.8 s (the first pose it shows in: 528.9 s) and back at 532.8 s. With the motion prior on every scan, the
 // scans de-skewed with the old yaw rate fit poorly and the prior held the old rate (yaw steps
 // of -0.2 to -0.4 deg where the truth turned -2.3 deg, then too much at the end): the prior
 // is released where the fit drops (motion_prior_release_ratio), and the turn hypotheses try
@@ -388,10 +396,8 @@ TEST(OdometryTest, MotionPriorIsReleasedWhereTheYawRateSteps) {
   held.turn_hypothesis_step_rad_s = 0.0;
   OdometryConfig released = held;
   released.motion_prior_release_ratio = 0.9;
-  OdometryConfig with_hypotheses = released;
-  with_hypotheses.turn_hypothesis_step_rad_s = 0.4;
-  with_hypotheses.turn_hypothesis_trigger = 0.9;
-  with_hypotheses.turn_hypothesis_levels = 2;
+  const OdometryConfig with_hypotheses;  // the defaults: prior 30, release 0.9, hypotheses
+  EXPECT_EQ(with_hypotheses.motion_prior_weight, held.motion_prior_weight);
   const SegmentErrors h = CampusSegmentErrors(simulator.value(), 2, 5250, 120, held);
   const SegmentErrors r = CampusSegmentErrors(simulator.value(), 2, 5250, 120, released);
   const SegmentErrors t = CampusSegmentErrors(simulator.value(), 2, 5250, 120, with_hypotheses);
@@ -400,8 +406,8 @@ TEST(OdometryTest, MotionPriorIsReleasedWhereTheYawRateSteps) {
             << r.max_rotation_deg << " / " << r.final_rotation_deg << " (" << r.prior_released
             << " scans), with turn hypotheses " << t.max_rotation_deg << " / "
             << t.final_rotation_deg << "\n";
-  EXPECT_EQ(h.prior_released, 0);
   EXPECT_GT(r.prior_released, 0);
+  EXPECT_GT(t.prior_released, 0);
   EXPECT_LT(r.max_rotation_deg, 0.5 * h.max_rotation_deg);
   EXPECT_LT(r.max_rotation_deg, 1.0);
   // Measured 3.52 / 2.25 deg held, 0.48 / 0.21 deg released (2 scans), 1.03 / 0.23 deg with
