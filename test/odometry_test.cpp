@@ -334,7 +334,6 @@ StatusOr<sim::CampusSimulator> CampusSeed(int seed) {
   config.campus.seed = seed;
   return sim::CampusSimulator::Create(config);
 }
-StatusOr<sim::CampusSimulator> CampusSeed1() { return CampusSeed(1); }
 
 // Regression (campus s00 seed 1, first 500 scans): with the velocity of the last interval
 // only (velocity_window_scans = 1), the motion model fed the along-track ICP noise back into
@@ -343,7 +342,7 @@ StatusOr<sim::CampusSimulator> CampusSeed1() { return CampusSeed(1); }
 // error RMS 1.28 m/s with the last interval, 0.14 m/s with the window of 3 over the whole
 // twist, 0.18 m/s with the window over the translation only (the default).
 TEST(OdometryTest, VelocityWindowDampsAlongTrackOscillationOnCampus) {
-  const auto simulator = CampusSeed1();
+  const auto simulator = CampusSeed(1);
   ASSERT_TRUE(simulator.ok()) << simulator.status().message();
   OdometryConfig odometry_config;
   odometry_config.velocity_window_scans = 3;
@@ -365,7 +364,7 @@ TEST(OdometryTest, VelocityWindowDampsAlongTrackOscillationOnCampus) {
 // prior (odometry.motion_prior_weight, on by default since session 32, see odometry.h) holds
 // the track there.
 TEST(OdometryTest, MotionPriorHoldsTheTrackAlongAStraightWalledRoad) {
-  const auto simulator = CampusSeed1();
+  const auto simulator = CampusSeed(1);
   ASSERT_TRUE(simulator.ok()) << simulator.status().message();
   OdometryConfig with_config;
   with_config.motion_prior_weight = 30.0;
@@ -382,11 +381,12 @@ TEST(OdometryTest, MotionPriorHoldsTheTrackAlongAStraightWalledRoad) {
 }
 
 // Campus s02 seed 3, scans 5250-5370: a sharp right turn whose yaw rate steps 0 -> -0.4 rad/s
-// within the scan at 528.8 s (the first pose it shows in: 528.9 s) and back at 532.8 s. With the motion prior on every scan, the
-// scans de-skewed with the old yaw rate fit poorly and the prior held the old rate (yaw steps
-// of -0.2 to -0.4 deg where the truth turned -2.3 deg, then too much at the end): the prior
-// is released where the fit drops (motion_prior_release_ratio), and the turn hypotheses try
-// the scan de-skewed with other rates.
+// within the scan at 528.8 s (the first pose it shows in: 528.9 s) and back at 532.8 s. With
+// the motion prior on every scan, the scans de-skewed with the old yaw rate fit poorly and the
+// prior held the old rate (yaw steps of -0.2 to -0.4 deg where the truth turned -2.3 deg, then
+// too much at the end): the prior is released where the fit drops
+// (motion_prior_release_ratio), and the turn hypotheses try the scan de-skewed with other
+// rates.
 TEST(OdometryTest, MotionPriorIsReleasedWhereTheYawRateSteps) {
   const auto simulator = CampusSeed(3);
   ASSERT_TRUE(simulator.ok()) << simulator.status().message();

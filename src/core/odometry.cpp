@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -173,6 +174,9 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   prepare(velocity);
   watch.Lap();
 
+  // The recent fits' median, for the prior's release and the turn hypotheses' trigger alike
+  // (the window changes only at the end of the scan).
+  const std::optional<double> median_weight = RecentWeightMedian();
   const double sigma = threshold_.Sigma();
   result.sigma_m = sigma;
   const double max_distance_m = config_.correspondence_sigma_factor * sigma;
@@ -183,19 +187,17 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m);
     // A poor fit with the prior: perhaps the motion model broke (a yaw-rate step), which the
     // prior must not hold; try without it (see the config).
-    const double median_weight = RecentWeightMedian();
-    if (prior.weight > 0.0 && config_.motion_prior_release_ratio > 0.0 && median_weight > 0.0 &&
+    if (prior.weight > 0.0 && config_.motion_prior_release_ratio > 0.0 && median_weight &&
         (!icp.ok() ||
-         icp.value().mean_weight < config_.motion_prior_release_ratio * median_weight)) {
-      result.motion_prior_retried = true;
-      const IcpTranslationPrior with_prior = prior;
+         icp.value().mean_weight < config_.motion_prior_release_ratio * *median_weight)) {
+      const double prior_weight = prior.weight;
       prior.weight = 0.0;
       StatusOr<IcpResult> free_icp = register_scan(result.prediction, max_distance_m, kernel_m);
       if (free_icp.ok() && (!icp.ok() || free_icp.value().mean_weight > icp.value().mean_weight)) {
         icp = std::move(free_icp);
         result.motion_prior_released = true;
       } else {
-        prior = with_prior;
+        prior.weight = prior_weight;
       }
     }
     if (icp.ok()) {
@@ -233,7 +235,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   }
 
   if (result.registered && continuous && dt > 0.0 && config_.turn_hypothesis_step_rad_s > 0.0 &&
-      TurnHypothesesTriggered(result.icp.mean_weight, velocity(5))) {
+      TurnHypothesesTriggered(result.icp.mean_weight, velocity(5), median_weight)) {
     // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
     // one scan leaves the prediction (and its de-skew) a whole step off.
     result.turn_hypotheses_tried = true;
@@ -336,19 +338,18 @@ bool Odometry::InTurn(double yaw_rate) const {
   return std::abs(yaw_rate) > 0.5 * config_.turn_hypothesis_step_rad_s;
 }
 
-bool Odometry::TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const {
-  if (recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
-    return false;
-  }
+bool Odometry::TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate,
+                                       const std::optional<double>& median_weight) const {
+  if (!median_weight) return false;  // the window is not full yet
   if (config_.turn_hypothesis_trigger <= 0.0) return true;
   if (config_.turn_hypothesis_in_turns && InTurn(predicted_yaw_rate)) return true;
-  return mean_weight < config_.turn_hypothesis_trigger * RecentWeightMedian();
+  return mean_weight < config_.turn_hypothesis_trigger * *median_weight;
 }
 
-double Odometry::RecentWeightMedian() const {
-  if (recent_weights_.empty() ||
-      recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
-    return 0.0;
+std::optional<double> Odometry::RecentWeightMedian() const {
+  // turn_hypothesis_window_scans >= 1 (Validate): a full window is never empty.
+  if (recent_weights_.size() < static_cast<std::size_t>(config_.turn_hypothesis_window_scans)) {
+    return std::nullopt;
   }
   std::vector<double> weights(recent_weights_.begin(), recent_weights_.end());
   const auto middle = weights.begin() + static_cast<std::ptrdiff_t>(weights.size() / 2);

@@ -204,9 +204,8 @@ struct OdometryResult {
   bool turn_hypotheses_tried = false;
   /// true: one of them replaced the registration.
   bool turn_hypothesis_won = false;
-  /// true: the motion prior's fit was poor and the scan was registered again without it
-  /// (motion_prior_release_ratio); `motion_prior_released`: the fit without it was kept.
-  bool motion_prior_retried = false;
+  /// true: the motion prior's fit was poor and the scan's registration without it was kept
+  /// (motion_prior_release_ratio).
   bool motion_prior_released = false;
   std::string message;
   /// Filtered scan, de-skewed, in the sensor frame at the stamp; all attributes kept.
@@ -250,11 +249,12 @@ class Odometry {
   se3::Vector6d WindowVelocity(const Pose3& estimate, double stamp_s) const;
   /// Whether a registration with this mean kernel weight, predicted at this yaw rate
   /// [rad/s], tries the turn hypotheses (see OdometryConfig::turn_hypothesis_trigger and
-  /// turn_hypothesis_in_turns).
-  bool TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate) const;
+  /// turn_hypothesis_in_turns); `median_weight` is RecentWeightMedian()'s.
+  bool TurnHypothesesTriggered(double mean_weight, double predicted_yaw_rate,
+                               const std::optional<double>& median_weight) const;
   /// Median mean kernel weight of the last turn_hypothesis_window_scans registered scans;
-  /// 0 until that many were registered since the start or the last gap.
-  double RecentWeightMedian() const;
+  /// none until that many were registered since the start or the last gap.
+  std::optional<double> RecentWeightMedian() const;
   /// Whether this yaw rate [rad/s] is a turn for the hypotheses: faster than half of
   /// turn_hypothesis_step_rad_s.
   bool InTurn(double yaw_rate) const;
