@@ -367,6 +367,52 @@ TEST_F(InterSessionMatcherTest, ASubmapWithoutVotesIsPlacedByItsNeighboursLoop) 
   }
 }
 
+// Submaps 2 and 3 (ids 98 and 99) without votes, and sequence guidance reaching only the next
+// submap. The votes leave submap 1 undefined too (its largest proportion is 0.5), so only
+// submap 0 has a loop by votes: it places submap 1; submaps 2 and 3 are two and three submaps
+// from it, and only loops placed by sequence (submap 1's, then submap 2's) can place them.
+TEST_F(InterSessionMatcherTest, ChainedSequenceGuidancePlacesSubmapsBeyondTheGap) {
+  SessionResult current = data_->current;
+  current.submaps[2].id = 98;
+  current.submaps[3].id = 99;
+  InterSessionMatcherConfig one_pass;
+  one_pass.sequence.max_gap_submaps = 1;
+  one_pass.sequence.chain = false;
+  InterSessionMatcherConfig chained = one_pass;
+  chained.sequence.chain = true;
+  const auto match = [&](const InterSessionMatcherConfig& config) {
+    return InterSessionMatcher::Create(config).value().Match(data_->history, current,
+                                                             *data_->recognizer).value();
+  };
+  const InterSessionMatchResult without = match(one_pass);
+  ASSERT_TRUE(without.aligned);
+  EXPECT_EQ(AcceptedSubmaps(without).count(1), 1u) << "placed by submap 0's loop";
+  EXPECT_EQ(AcceptedSubmaps(without).count(98), 0u) << "two submaps from the votes' loop";
+  EXPECT_EQ(AcceptedSubmaps(without).count(99), 0u);
+
+  const InterSessionMatchResult with = match(chained);
+  ASSERT_TRUE(with.aligned);
+  EXPECT_EQ(AcceptedSubmaps(with).count(1), 1u);
+  EXPECT_EQ(AcceptedSubmaps(with).count(98), 1u);
+  EXPECT_EQ(AcceptedSubmaps(with).count(99), 1u);
+  EXPECT_EQ(AcceptedSubmaps(with).count(4), 0u) << "the unvisited place stays undefined";
+  for (const InterSessionLoop& loop : with.loops) {
+    const std::uint32_t truth_id =
+        loop.current_submap == 98 ? 2 : loop.current_submap == 99 ? 3 : loop.current_submap;
+    const Pose3 error =
+        se3::Between(TrueRelative(loop.history_index, truth_id), loop.T_history_current);
+    EXPECT_LT(se3::TranslationNorm(error), 0.1) << "loop " << loop.current_submap;
+    EXPECT_LT(se3::RotationAngleRad(error), 0.5 * kDeg) << "loop " << loop.current_submap;
+  }
+  // Each submap is placed once: its sequence records are those of one pass.
+  std::map<std::uint32_t, int> sequence_records;
+  for (const LoopRecord& rec : with.records) {
+    if (rec.kind == LoopKind::kInterSequence) ++sequence_records[rec.current_submap];
+  }
+  EXPECT_LE(sequence_records[98], chained.sequence.max_candidates);
+  EXPECT_LE(sequence_records[99], chained.sequence.max_candidates);
+}
+
 // Every record rejected for disagreeing with its reference is listed as a dependent loop (for
 // the merger's second judgement), with that record, its pose, and an accepted reference.
 // Returns how many are listed.

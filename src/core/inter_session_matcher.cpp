@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/inter_session_matcher.h"
 
 #include <algorithm>
+#include <deque>
 #include <iterator>
 #include <limits>
 #include <cmath>
@@ -410,13 +411,15 @@ double ShareNear(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen:
 }
 
 // Registers `jobs`, each placed by the accepted loop reference_of_record[job.record], and
-// accepts those that agree with that loop under the sequence-consistency bounds.
-void RegisterAgainstReferences(Jobs* jobs,
+// accepts those that agree with that loop under the sequence-consistency bounds. Returns the
+// accepted ones.
+RegisteredLoops RegisterAgainstReferences(Jobs* jobs,
                                const std::map<std::size_t, const Registered*>& reference_of_record,
                                const InterSessionMatcherConfig& config,
                                const SessionResult& current, const std::string& relation,
                                PairRegistrar* registrar, InterSessionMatchResult* result) {
-  if (jobs->empty()) return;
+  RegisteredLoops accepted;
+  if (jobs->empty()) return accepted;
   for (const Registered& r : registrar->Run(jobs, result)) {
     LoopRecord& record = result->records[r.record];
     const Registered& ref = *reference_of_record.at(r.record);
@@ -424,6 +427,7 @@ void RegisterAgainstReferences(Jobs* jobs,
       record.status = LoopStatus::kAccepted;
       record.reason.clear();
       result->loops.push_back(r.loop);
+      accepted.push_back(r);
     } else {
       record.status = LoopStatus::kRejected;
       record.reason = "disagrees with the loop of submap " +
@@ -436,6 +440,7 @@ void RegisterAgainstReferences(Jobs* jobs,
       result->dependent.push_back(dependent);
     }
   }
+  return accepted;
 }
 
 // Per current submap: its accepted loop with the largest overlap (null: none).
@@ -459,21 +464,21 @@ Pose3 PriorOf(const Registered& placement, const Submap& history_submap,
          current_submap.T_map_submap;
 }
 
-// Sequence guidance (see SequenceGuidanceConfig): loops for the submaps the votes left without
-// one, placed by an accepted loop of a neighbour along the session.
-void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents& history,
-                     const SessionResult& current, const RegisteredLoops& registered,
-                     const std::vector<bool>& accepted, PairRegistrar* registrar,
+// One pass of sequence guidance: the candidate pairs of every submap without a loop (and not
+// placed before) that an accepted loop within `max_gap_submaps` places.
+void PlaceBySequence(const InterSessionMatcherConfig& config, const MapContents& history,
+                     const SessionResult& current, const std::vector<const Registered*>& reference,
+                     std::vector<bool>* placed_before,
+                     std::vector<std::vector<Eigen::Vector3d>>* history_positions_cache,
+                     Jobs* jobs_out, std::map<std::size_t, const Registered*>* references_out,
                      InterSessionMatchResult* result) {
   const SequenceGuidanceConfig& sequence = config.sequence;
   const long n = static_cast<long>(current.submaps.size());
-  const std::vector<const Registered*> reference =
-      BestAcceptedLoops(current.submaps.size(), registered, accepted);
-  Jobs jobs;
-  std::map<std::size_t, const Registered*> reference_of_record;
-  std::vector<std::vector<Eigen::Vector3d>> history_positions(history.submaps.size());
+  Jobs& jobs = *jobs_out;
+  std::map<std::size_t, const Registered*>& reference_of_record = *references_out;
+  std::vector<std::vector<Eigen::Vector3d>>& history_positions = *history_positions_cache;
   for (long c = 0; c < n; ++c) {
-    if (reference[c]) continue;
+    if (reference[c] || (*placed_before)[c]) continue;
     // The nearest submap along the session with an accepted loop (ties: larger overlap).
     const Registered* ref = nullptr;
     for (int gap = 1; gap <= sequence.max_gap_submaps && !ref; ++gap) {
@@ -485,6 +490,7 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
       }
     }
     if (!ref) continue;
+    (*placed_before)[c] = true;
     const Submap& cur = current.submaps[c];
     const std::vector<Eigen::Vector3d> placed = ScanPositions(cur, ref->T_map_session);
     // (share of the placed scans with a history scan near, history index), best first.
@@ -519,8 +525,37 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
       result->records.push_back(record);
     }
   }
-  RegisterAgainstReferences(&jobs, reference_of_record, config, current, "placed", registrar,
-                            result);
+}
+
+// Sequence guidance (see SequenceGuidanceConfig): loops for the submaps the votes left without
+// one, placed by an accepted loop of a neighbour along the session.
+void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents& history,
+                     const SessionResult& current, const RegisteredLoops& registered,
+                     const std::vector<bool>& accepted, PairRegistrar* registrar,
+                     InterSessionMatchResult* result) {
+  const SequenceGuidanceConfig& sequence = config.sequence;
+  std::vector<const Registered*> reference =
+      BestAcceptedLoops(current.submaps.size(), registered, accepted);
+  std::vector<std::vector<Eigen::Vector3d>> history_positions(history.submaps.size());
+  std::vector<bool> placed_before(current.submaps.size(), false);
+  // The loops that sequence guidance accepted, references of the next pass (a deque: the
+  // references point into it while it grows).
+  std::deque<Registered, Eigen::aligned_allocator<Registered>> by_sequence;
+  for (;;) {
+    Jobs jobs;
+    std::map<std::size_t, const Registered*> reference_of_record;
+    PlaceBySequence(config, history, current, reference, &placed_before, &history_positions,
+                    &jobs, &reference_of_record, result);
+    if (jobs.empty()) break;
+    const RegisteredLoops accepted_now = RegisterAgainstReferences(
+        &jobs, reference_of_record, config, current, "placed", registrar, result);
+    if (!sequence.chain || accepted_now.empty()) break;
+    for (const Registered& r : accepted_now) {
+      by_sequence.push_back(r);
+      const Registered*& best = reference[r.current];
+      if (!best || r.loop.overlap_ratio > best->loop.overlap_ratio) best = &by_sequence.back();
+    }
+  }
 }
 
 }  // namespace

@@ -115,6 +115,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"inter_session", "consistency_secondary_rotation_per_m",
        &m.matching.consistency.secondary_rotation_per_m},
       {"inter_session", "sequence_max_gap_submaps", &m.matching.sequence.max_gap_submaps},
+      {"inter_session", "sequence_chain", &m.matching.sequence.chain},
       {"inter_session", "sequence_max_candidates", &m.matching.sequence.max_candidates},
       {"inter_session", "sequence_search_radius_m", &m.matching.sequence.search_radius_m},
       {"inter_session", "guided_candidates", &m.matching.guided_candidates},

@@ -79,6 +79,7 @@ namespace ros_params {
   F(inter_session_consistency_secondary_rotation_per_m,                                       \
     g.matching.consistency.secondary_rotation_per_m)                                          \
   F(inter_session_sequence_max_gap_submaps, g.matching.sequence.max_gap_submaps)              \
+  F(inter_session_sequence_chain, g.matching.sequence.chain)                                  \
   F(inter_session_sequence_max_candidates, g.matching.sequence.max_candidates)                \
   F(inter_session_sequence_search_radius_m, g.matching.sequence.search_radius_m)              \
   F(inter_session_guided_candidates, g.matching.guided_candidates)                            \

@@ -74,9 +74,15 @@ struct SequenceConsistencyConfig {
 /// submap's scan positions within `search_radius_m` [m] of one of theirs (a revisit, not a
 /// view across a block); a loop is kept only when it also agrees with the neighbour's loop
 /// under the sequence-consistency bounds. Such loops are recorded with kind `inter_sequence`.
-/// 0 gap: off.
+/// 0 gap: off. With `chain`, the loops a pass accepts place the submaps that no loop was near
+/// enough to place before, in further passes, until a pass accepts nothing; each submap is
+/// placed at most once. A stretch of the session that the descriptors miss (a street passed
+/// at 7 m from where history drove, a short submap at the end of the session) is then reached
+/// from the nearest loop placed by sequence, not only from one placed by votes; every loop
+/// still has to agree with the one that placed it.
 struct SequenceGuidanceConfig {
-  int max_gap_submaps = 2;
+  int max_gap_submaps = 3;
+  bool chain = true;
   int max_candidates = 2;
   double search_radius_m = 10.0;
 
