@@ -49,6 +49,24 @@ TEST(PipelineConfig, RoundTripThroughYaml) {
   EXPECT_EQ(PipelineConfigToYaml(back.value()), PipelineConfigToYaml(config));
 }
 
+TEST(PipelineConfig, TheDescriptorKindIsReadAndWrittenByName) {
+  EXPECT_EQ(PipelineConfig().place_recognition.descriptor.kind, DescriptorKind::kRingHistogram);
+  StatusOr<PipelineConfig> config =
+      PipelineConfigFromYaml("place_recognition:\n  descriptor: scan_context\n", "test");
+  ASSERT_TRUE(config.ok()) << config.status().message();
+  EXPECT_EQ(config.value().place_recognition.descriptor.kind, DescriptorKind::kScanContext);
+  const std::string yaml = PipelineConfigToYaml(config.value());
+  EXPECT_NE(yaml.find("descriptor: scan_context"), std::string::npos) << yaml;
+  StatusOr<PipelineConfig> back = PipelineConfigFromYaml(yaml, "rt");
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  EXPECT_EQ(back.value().place_recognition.descriptor.kind, DescriptorKind::kScanContext);
+  StatusOr<PipelineConfig> bad =
+      PipelineConfigFromYaml("place_recognition:\n  descriptor: locnet\n", "my.yaml");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("ring_histogram or scan_context"), std::string::npos)
+      << bad.status().message();
+}
+
 TEST(PipelineConfig, ErrorsNameTheProblem) {
   auto error = [](const std::string& yaml) {
     StatusOr<PipelineConfig> c = PipelineConfigFromYaml(yaml, "my.yaml");

@@ -2,6 +2,7 @@
 
 #include <fstream>
 #include <sstream>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -11,7 +12,8 @@ namespace multisession_mapper {
 namespace core {
 namespace {
 
-using Field = std::variant<double*, int*, bool*>;
+// A descriptor kind is written by its name (DescriptorKindName).
+using Field = std::variant<double*, int*, bool*, DescriptorKind*>;
 struct Key {
   const char* section;
   const char* name;
@@ -96,6 +98,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"frame_anchor", "max_correction_m", &s.frame_anchor.max_correction_m},
       {"frame_anchor", "max_correction_rad", &s.frame_anchor.max_correction_rad},
       {"frame_anchor", "min_correction_rad", &s.frame_anchor.min_correction_rad},
+      {"place_recognition", "descriptor", &p.descriptor.kind},
       {"place_recognition", "d_alpha_ring_histogram", &p.database.d_alpha_ring_histogram},
       {"place_recognition", "d_alpha_scan_context", &p.database.d_alpha_scan_context},
       {"place_recognition", "log_neighbours", &p.log_neighbours},
@@ -187,13 +190,23 @@ StatusOr<PipelineConfig> PipelineConfigFromYaml(const std::string& yaml_text,
         for (Key& key : keys) {
           if (section_name != key.section || name != key.name) continue;
           known = true;
+          bool named = true;
           try {
             std::visit([&](auto* field) {
-              *field = entry->second.as<std::remove_pointer_t<decltype(field)>>();
+              using T = std::remove_pointer_t<decltype(field)>;
+              if constexpr (std::is_same_v<T, DescriptorKind>) {
+                named = DescriptorKindFromName(entry->second.as<std::string>(), field);
+              } else {
+                *field = entry->second.as<T>();
+              }
             }, key.field);
           } catch (const YAML::Exception&) {
             return Status::Error(source + ": " + section_name + "." + name +
                                  " has a value of the wrong type");
+          }
+          if (!named) {
+            return Status::Error(source + ": " + section_name + "." + name +
+                                 " must be ring_histogram or scan_context");
           }
         }
         if (!known) {
@@ -229,7 +242,13 @@ std::string PipelineConfigToYaml(const PipelineConfig& config) {
       open_section = key.section;
     }
     out << YAML::Key << key.name << YAML::Value;
-    std::visit([&](auto* field) { out << *field; }, key.field);
+    std::visit([&](auto* field) {
+      if constexpr (std::is_same_v<std::remove_pointer_t<decltype(field)>, DescriptorKind>) {
+        out << DescriptorKindName(*field);
+      } else {
+        out << *field;
+      }
+    }, key.field);
   }
   if (!open_section.empty()) out << YAML::EndMap;
   out << YAML::EndMap;
