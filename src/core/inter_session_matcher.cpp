@@ -413,11 +413,10 @@ double ShareNear(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen:
 // Registers `jobs`, each placed by the accepted loop reference_of_record[job.record], and
 // accepts those that agree with that loop under the sequence-consistency bounds. Returns the
 // accepted ones.
-RegisteredLoops RegisterAgainstReferences(Jobs* jobs,
-                               const std::map<std::size_t, const Registered*>& reference_of_record,
-                               const InterSessionMatcherConfig& config,
-                               const SessionResult& current, const std::string& relation,
-                               PairRegistrar* registrar, InterSessionMatchResult* result) {
+RegisteredLoops RegisterAgainstReferences(
+    Jobs* jobs, const std::map<std::size_t, const Registered*>& reference_of_record,
+    const InterSessionMatcherConfig& config, const SessionResult& current,
+    const std::string& relation, PairRegistrar* registrar, InterSessionMatchResult* result) {
   RegisteredLoops accepted;
   if (jobs->empty()) return accepted;
   for (const Registered& r : registrar->Run(jobs, result)) {
