@@ -81,12 +81,15 @@ using SearchMode = DescriptorDatabaseConfig::SearchMode;
 class DescriptorDatabaseExactnessTest : public ::testing::TestWithParam<SearchMode> {};
 
 // The kd-tree indexes a 16-D projection of these 64-D vectors; the answer must still be the
-// brute-force one: always in kExact mode, within d_alpha in kExactWithinDAlpha mode.
+// brute-force one: always in kExact mode, within d_alpha in kExactWithinDAlpha mode. With a
+// large kd-tree approximation (search_eps 10; the exact modes search with 0 by construction)
+// the approximate mode's re-ranked candidates must still hold a near copy of a stored vector.
 TEST_P(DescriptorDatabaseExactnessTest, QueryMatchesBruteForceAndAppliesDAlpha) {
   const bool exact_beyond = GetParam() == SearchMode::kExact;
   const Fixture f = RandomFixture(2000, 2);
   DescriptorDatabaseConfig config;
   config.d_alpha_ring_histogram = 0.05;
+  config.search_eps = 10.0;
   config.search_mode = GetParam();
   const DescriptorDatabase db = MakeRingDatabase(f, config);
   EXPECT_EQ(db.size(), 2000u);
@@ -137,6 +140,19 @@ TEST_P(DescriptorDatabaseExactnessTest, QueryMatchesBruteForceAndAppliesDAlpha) 
 INSTANTIATE_TEST_SUITE_P(SearchModes, DescriptorDatabaseExactnessTest,
                          ::testing::Values(SearchMode::kApproximate,
                                            SearchMode::kExactWithinDAlpha, SearchMode::kExact));
+
+TEST(DescriptorDatabaseTest, RefusesABadSearchEps) {
+  for (double eps : {-0.5, std::nan(""), 1000.0}) {
+    DescriptorDatabaseConfig config;
+    config.search_eps = eps;
+    const Status status = config.Validate();
+    EXPECT_FALSE(status.ok()) << eps;
+    EXPECT_NE(status.message().find("search_eps"), std::string::npos) << status.message();
+  }
+  DescriptorDatabaseConfig config;
+  config.search_eps = 0.0;
+  EXPECT_TRUE(config.Validate().ok());
+}
 
 TEST(DescriptorDatabaseTest, RefusesWrongDescriptors) {
   const Fixture f = RandomFixture(10, 4);

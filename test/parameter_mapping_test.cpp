@@ -106,7 +106,7 @@ TEST(ParameterMapping, EveryParameterReachesTheCoreAndComesBack) {
     core::InterSessionMatcherConfig m;
     ApplyPlaceRecognitionConfig(p, &r, &m);
     ExpectSameValues(ToPlaceRecognitionConfig(r, m), p, "PlaceRecognition");
-    EXPECT_EQ(changed, 7);
+    EXPECT_EQ(changed, 8);
   }
   {
     // idle_finish_s and merged_map_voxel_m are read by the nodelet, not by the core.

@@ -130,6 +130,9 @@ Status DescriptorDatabaseConfig::Validate() const {
   if (max_exact_candidates < 1) {
     return Status::Error(p + "max_exact_candidates must be >= 1");
   }
+  if (!std::isfinite(search_eps) || search_eps < 0.0 || search_eps > 100.0) {
+    return Status::Error(p + "search_eps must be in [0, 100], got " + std::to_string(search_eps));
+  }
   if (leaf_max_size < 1 || leaf_max_size > 1000) {
     return Status::Error(p + "leaf_max_size must be in [1, 1000]");
   }
@@ -362,7 +365,11 @@ StatusOr<DatabaseQueryResult> DescriptorDatabase::Query(const PlaceDescriptor& d
   std::vector<float> squared(searched);
   nanoflann::KNNResultSet<float, std::size_t, std::size_t> knn(searched);
   knn.init(indices.data(), squared.data());
-  d.tree->findNeighbors(knn, point.data(), nanoflann::SearchParams());
+  // The exact modes' proof below needs the true projected k nearest: eps only when approximate.
+  const float eps = d.config.search_mode == SearchMode::kApproximate
+                        ? static_cast<float>(d.config.search_eps)
+                        : 0.0f;
+  d.tree->findNeighbors(knn, point.data(), nanoflann::SearchParams(32, eps));
   const std::size_t found = knn.size();
   indices.resize(found);
   squared.resize(found);

@@ -101,6 +101,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"place_recognition", "descriptor", &p.descriptor.kind},
       {"place_recognition", "d_alpha_ring_histogram", &p.database.d_alpha_ring_histogram},
       {"place_recognition", "d_alpha_scan_context", &p.database.d_alpha_scan_context},
+      {"place_recognition", "search_eps", &p.database.search_eps},
       {"place_recognition", "log_neighbours", &p.log_neighbours},
       {"inter_session", "gamma", &m.matching.voting.gamma},
       {"inter_session", "top_n", &m.matching.voting.top_n},

@@ -60,6 +60,7 @@ namespace ros_params {
 #define MSM_PLACE_RECOGNITION_FIELDS(F)                                                  \
   F(place_recognition_d_alpha_ring_histogram, p.database.d_alpha_ring_histogram)         \
   F(place_recognition_d_alpha_scan_context, p.database.d_alpha_scan_context)             \
+  F(place_recognition_search_eps, p.database.search_eps)                                 \
   F(place_recognition_log_neighbours, p.log_neighbours)                                  \
   F(inter_session_gamma, m.voting.gamma)                                                 \
   F(inter_session_top_n, m.voting.top_n)                                                 \

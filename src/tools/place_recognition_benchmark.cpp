@@ -6,7 +6,8 @@
 // Prints medians and 95th percentiles in milliseconds.
 //
 // Usage: place_recognition_benchmark [vlp16_pcd_dir] [database_entries]
-//            [approximate|within|exact] [index_dim] [ring_histogram_candidates]
+//            [approximate|within|exact] [index_dim] [ring_histogram_candidates] [search_eps]
+//            [scan_context_candidates]
 #define PCL_NO_PRECOMPILE
 #include <algorithm>
 #include <chrono>
@@ -276,14 +277,18 @@ int main(int argc, char** argv) {
   }
   if (argc > 4) config.index_dim = std::stoi(argv[4]);
   if (argc > 5) config.rerank_candidates_ring_histogram = std::stoi(argv[5]);
+  if (argc > 6) config.search_eps = std::stod(argv[6]);
+  if (argc > 7) config.rerank_candidates_scan_context = std::stoi(argv[7]);
   const core::Status valid = config.Validate();
   if (!valid.ok()) {
     std::fprintf(stderr, "%s\n", valid.message().c_str());
     return 1;
   }
-  std::printf("database: search mode %s, index_dim %d, ring histogram candidates %d\n",
+  std::printf("database: search mode %s, index_dim %d, ring histogram candidates %d, "
+              "scan context candidates %d, search_eps %.2f\n",
               argc > 3 ? argv[3] : "approximate", config.index_dim,
-              config.rerank_candidates_ring_histogram);
+              config.rerank_candidates_ring_histogram, config.rerank_candidates_scan_context,
+              config.search_eps);
   for (double noise : {0.02, 0.065, 0.15}) {
     BenchQuery("ring_histogram", rh_anchors, count, noise, config);
     BenchQuery("scan_context", sc_anchors, count, noise, config);
