@@ -326,6 +326,67 @@ TEST(DescriptorDatabaseTest, ScanContextDatabaseReranksAndGivesYaw) {
   }
 }
 
+// Random Scan Contexts (20 x 60) with their ring keys (row means): enough entries for a deep
+// ring-key tree.
+Fixture RandomScanContextFixture(int count, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  Fixture f;
+  for (int i = 0; i < count; ++i) {
+    PlaceDescriptor d;
+    d.kind = DescriptorKind::kScanContext;
+    d.rows = 20;
+    d.cols = 60;
+    d.matrix.resize(20 * 60);
+    for (float& v : d.matrix) v = u(rng) < 0.7f ? u(rng) : 0.0f;
+    d.key.assign(20, 0.0f);
+    for (int r = 0; r < 20; ++r) {
+      for (int c = 0; c < 60; ++c) d.key[r] += d.matrix[r * 60 + c] / 60.0f;
+    }
+    f.entries.push_back({"s00", double(i), i / 10});
+    f.descriptors.push_back(d);
+  }
+  return f;
+}
+
+// search_eps approximates only the ring histogram's projected tree: a Scan Context query
+// returns the same neighbours with any eps. Control: on a ring-histogram database of the same
+// size the same eps does change some answers, so the comparison can see it.
+TEST(DescriptorDatabaseTest, SearchEpsApproximatesOnlyTheRingHistogramTree) {
+  DescriptorDatabaseConfig exact_tree;
+  exact_tree.search_eps = 0.0;
+  DescriptorDatabaseConfig loose_tree;
+  loose_tree.search_eps = 100.0;
+  const Fixture sc = RandomScanContextFixture(3000, 5);
+  const Fixture rh = RandomFixture(3000, 5);
+  std::vector<DescriptorDatabase> sc_dbs, rh_dbs;
+  for (const DescriptorDatabaseConfig& config : {exact_tree, loose_tree}) {
+    auto db = DescriptorDatabase::Create(config, DescriptorKind::kScanContext, 20, 20, 60);
+    ASSERT_TRUE(db.ok()) << db.status().message();
+    sc_dbs.push_back(std::move(db).value());
+    ASSERT_TRUE(sc_dbs.back().Insert(sc.entries, sc.descriptors).ok());
+    rh_dbs.push_back(MakeRingDatabase(rh, config));
+  }
+  const Fixture sc_queries = RandomScanContextFixture(40, 6);
+  const Fixture rh_queries = RandomFixture(40, 6);
+  int rh_different = 0;
+  for (std::size_t q = 0; q < 40; ++q) {
+    const DatabaseQueryResult a = sc_dbs[0].Query(sc_queries.descriptors[q]).value();
+    const DatabaseQueryResult b = sc_dbs[1].Query(sc_queries.descriptors[q]).value();
+    ASSERT_EQ(a.neighbors.size(), b.neighbors.size());
+    for (std::size_t i = 0; i < a.neighbors.size(); ++i) {
+      EXPECT_EQ(a.neighbors[i].index, b.neighbors[i].index) << "query " << q;
+      EXPECT_EQ(a.neighbors[i].distance, b.neighbors[i].distance) << "query " << q;
+    }
+    const DatabaseQueryResult c = rh_dbs[0].Query(rh_queries.descriptors[q]).value();
+    const DatabaseQueryResult d = rh_dbs[1].Query(rh_queries.descriptors[q]).value();
+    ASSERT_FALSE(c.neighbors.empty());
+    ASSERT_FALSE(d.neighbors.empty());
+    if (c.neighbors[0].index != d.neighbors[0].index) ++rh_different;
+  }
+  EXPECT_GT(rh_different, 0);
+}
+
 TEST(DescriptorDatabaseTest, RingHistogramDatabaseFindsTheSamePlaceDrivenBackwards) {
   auto rh_or = RingHistogramDescriptor::Create(RingHistogramDescriptorConfig());
   ASSERT_TRUE(rh_or.ok());

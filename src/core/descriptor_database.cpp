@@ -365,10 +365,13 @@ StatusOr<DatabaseQueryResult> DescriptorDatabase::Query(const PlaceDescriptor& d
   std::vector<float> squared(searched);
   nanoflann::KNNResultSet<float, std::size_t, std::size_t> knn(searched);
   knn.init(indices.data(), squared.data());
-  // The exact modes' proof below needs the true projected k nearest: eps only when approximate.
-  const float eps = d.config.search_mode == SearchMode::kApproximate
-                        ? static_cast<float>(d.config.search_eps)
-                        : 0.0f;
+  // The exact modes' proof below needs the true projected k nearest: eps only when approximate,
+  // and only for the ring histogram's projected tree (Scan Context's time is in its re-ranking,
+  // and its ring-key candidates stay those of the original's exact search).
+  const float eps =
+      !scan_context && d.config.search_mode == SearchMode::kApproximate
+          ? static_cast<float>(d.config.search_eps)
+          : 0.0f;
   d.tree->findNeighbors(knn, point.data(), nanoflann::SearchParams(32, eps));
   const std::size_t found = knn.size();
   indices.resize(found);

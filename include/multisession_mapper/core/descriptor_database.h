@@ -79,10 +79,11 @@ struct DescriptorDatabaseConfig {
   int max_exact_candidates = 20000;
   /// kd-tree leaf size (nanoflann); 10-20 is a good range.
   int leaf_max_size = 16;
-  /// kd-tree approximation in kApproximate mode (nanoflann's eps, >= 0; the exact modes always
-  /// search with 0): a branch is skipped when its squared distance times (1 + search_eps)
-  /// exceeds the current largest squared distance of the candidates. 0 = exact kd-tree search
-  /// (the re-ranking is then the only approximation). Measured (place_recognition_benchmark,
+  /// Ring histogram: kd-tree approximation in kApproximate mode (nanoflann's eps, >= 0; the
+  /// exact modes and Scan Context's ring-key tree always search with 0): a branch is skipped
+  /// when its squared distance times (1 + search_eps) exceeds the current largest squared
+  /// distance of the candidates. 0 = exact kd-tree search (the re-ranking is then the only
+  /// approximation). Measured (place_recognition_benchmark,
   /// ring histogram, 100,000 synthetic entries, session 34, one machine; revisits = noise
   /// 0.02 / 0.065 from an entry, new place = 0.15, nothing within d_alpha), query median:
   ///   eps 0: 0.062 / 0.214 / 1.05-1.17 ms   eps 2: 0.046-0.050 / 0.068-0.095 / 0.21-0.28 ms
