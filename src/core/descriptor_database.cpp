@@ -368,8 +368,9 @@ StatusOr<DatabaseQueryResult> DescriptorDatabase::Query(const PlaceDescriptor& d
   // The exact modes' proof below needs the true projected k nearest: eps only when approximate,
   // and only for the ring histogram's projected tree (Scan Context's time is in its re-ranking,
   // and its ring-key candidates stay those of the original's exact search).
+  // A tree over the full vectors (key_dim <= index_dim) is exact and says so: no eps there.
   const float eps =
-      !scan_context && d.config.search_mode == SearchMode::kApproximate
+      d.projected && !scan_context && d.config.search_mode == SearchMode::kApproximate
           ? static_cast<float>(d.config.search_eps)
           : 0.0f;
   d.tree->findNeighbors(knn, point.data(), nanoflann::SearchParams(32, eps));

@@ -5,13 +5,16 @@ without an initial guess), then judged by the evaluator against the simulator's 
 The second session drives most of the first one's route (docs/simulator.md): the submaps that
 overlap history in ground truth must be placed by inter-session loops, none wrongly, and the
 others left undefined. Only the evaluator reads the truth. Takes about 1.5-2 minutes.
-Measured (session 34, seed 5): s01 has 10 submaps, 7 overlapping history in truth; 8 correct,
-0 wrong, 2 undefined (new place); 6 inter loops, all correct, median error 0.060 m / 0.40 deg;
-recall@1 0.92 over 539 queries (335 revisits).
+Measured (session 34, seed 5): s01 has 10 submaps, 7 overlapping history in truth, all 7
+placed (8 correct in all), 0 wrong, 2 undefined (new place), 0 missed; 6 inter loops, all
+correct, median error 0.060 m / 0.40 deg; recall@1 0.92 over 539 queries (335 revisits).
+Needs the built workspace (rosrun), like test_workspace.py; its files (two bags of ~200 MB)
+are removed when the module's tests are done.
 """
 
 import json
 import os
+import shutil
 import subprocess
 
 import pytest
@@ -35,6 +38,13 @@ def _run(cmd, log):
 def report(tmp_path_factory):
     assert 'ROS_PACKAGE_PATH' in os.environ, 'run inside the built workspace (catkin run_tests)'
     root = tmp_path_factory.mktemp('small_sessions')
+    try:
+        yield _map_and_evaluate(root)
+    finally:
+        shutil.rmtree(str(root), ignore_errors=True)
+
+
+def _map_and_evaluate(root):
     sim, map_dir, out = str(root / 'sim'), str(root / 'map'), str(root / 'report')
     _run(['rosrun', 'multisession_mapper', 'simulate_campus', '--profile', 'small',
           '--sessions', '2', '--seed', str(SEED), '--out', sim], str(root / 'simulate.log'))
@@ -61,8 +71,12 @@ def test_every_overlapping_submap_is_placed_and_none_wrongly(report):
     assert s01['submaps_wrong'] == 0, s01['submap_status']
     overlapping = s01['submaps_with_truth_overlap']
     assert overlapping >= 3, s01
-    # The paper's table: correct ones among those that overlap history (target >= 97 %).
-    assert s01['submaps_correct'] >= 0.97 * overlapping, s01['submap_status']
+    # The paper's table (target >= 97 % of the overlapping ones matched): `submaps_correct` also
+    # counts correct loops of submaps that do not overlap by the evaluator's rule, so the
+    # overlapping ones left unmatched are what is judged.
+    matched = overlapping - s01['submaps_undefined_missed']
+    assert matched >= 0.97 * overlapping, s01['submap_status']
+    assert s01['submaps_correct'] >= matched, s01['submap_status']
 
 
 def test_the_accepted_loops_are_right_and_accurate(report):
