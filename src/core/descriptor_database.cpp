@@ -365,14 +365,13 @@ StatusOr<DatabaseQueryResult> DescriptorDatabase::Query(const PlaceDescriptor& d
   std::vector<float> squared(searched);
   nanoflann::KNNResultSet<float, std::size_t, std::size_t> knn(searched);
   knn.init(indices.data(), squared.data());
-  // The exact modes' proof below needs the true projected k nearest: eps only when approximate,
-  // and only for the ring histogram's projected tree (Scan Context's time is in its re-ranking,
-  // and its ring-key candidates stay those of the original's exact search).
-  // A tree over the full vectors (key_dim <= index_dim) is exact and says so: no eps there.
-  const float eps =
-      d.projected && !scan_context && d.config.search_mode == SearchMode::kApproximate
-          ? static_cast<float>(d.config.search_eps)
-          : 0.0f;
+  // eps only on the ring histogram's projected tree (`projected` implies the ring histogram)
+  // and only when approximate: the exact modes' proof below needs the true projected k
+  // nearest, a tree over the full vectors reports itself exact, and Scan Context keeps the
+  // candidates of the original's exact ring-key search (its time is in the re-ranking).
+  const float eps = d.projected && d.config.search_mode == SearchMode::kApproximate
+                        ? static_cast<float>(d.config.search_eps)
+                        : 0.0f;
   d.tree->findNeighbors(knn, point.data(), nanoflann::SearchParams(32, eps));
   const std::size_t found = knn.size();
   indices.resize(found);
