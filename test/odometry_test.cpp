@@ -24,6 +24,7 @@ struct SequenceErrors {
   int registered = 0;
   int turn_hypotheses_tried = 0;
   int turn_hypotheses_won = 0;
+  std::vector<double> icp_iterations;  ///< per registered scan, all its ICP runs
 };
 
 // Drives the odometry along `trajectory` through a synthetic scene at 10 Hz and compares its
@@ -47,6 +48,9 @@ SequenceErrors RunSequence(const test::VehicleTrajectory& trajectory, bool with_
     errors.turn_hypotheses_tried += result.value().turn_hypotheses_tried ? 1 : 0;
     errors.turn_hypotheses_won += result.value().turn_hypothesis_won ? 1 : 0;
     errors.total_ms.push_back(result.value().timing.total_ms);
+    if (result.value().registered) {
+      errors.icp_iterations.push_back(result.value().icp_iterations);
+    }
     const Pose3 truth = se3::Between(T_w0, trajectory.PoseAt(stamp));
     const Pose3 error = se3::Between(truth, result.value().pose);
     errors.max_translation_m = std::max(errors.max_translation_m, se3::TranslationNorm(error));
@@ -104,6 +108,29 @@ TEST(OdometryTest, KeepsTrackInSharpTurns) {
 
 // Turns whose yaw rate steps from 0 to 0.4 rad/s and back within one scan (as the campus
 // simulator drives): the prediction and its de-skew are a whole step (2.3 deg) off there.
+// The odometry's convergence thresholds (1 mm, 1e-4 rad; the ICP's own are 0.1 mm, 1e-5 rad)
+// stop the iterations early for the same track.
+TEST(OdometryTest, DefaultConvergenceSavesIterationsNotAccuracy) {
+  const OdometryConfig loose;
+  EXPECT_DOUBLE_EQ(loose.icp.convergence_translation_m, 1e-3);
+  EXPECT_DOUBLE_EQ(loose.icp.convergence_rotation_rad, 1e-4);
+  OdometryConfig tight = loose;
+  tight.icp.convergence_translation_m = IcpConfig().convergence_translation_m;
+  tight.icp.convergence_rotation_rad = IcpConfig().convergence_rotation_rad;
+  const SequenceErrors with_loose = RunSequence(GentleTurns(), true, loose);
+  const SequenceErrors with_tight = RunSequence(GentleTurns(), true, tight);
+  const double loose_iterations = Median(with_loose.icp_iterations);
+  const double tight_iterations = Median(with_tight.icp_iterations);
+  std::cout << "ICP iterations per scan median: " << loose_iterations << " (1 mm, 1e-4 rad) "
+            << tight_iterations << " (0.1 mm, 1e-5 rad); max error " << with_loose.max_translation_m
+            << " m, " << with_loose.max_rotation_rad / kDeg << " deg against "
+            << with_tight.max_translation_m << " m, " << with_tight.max_rotation_rad / kDeg
+            << " deg" << std::endl;
+  EXPECT_LT(loose_iterations, 0.8 * tight_iterations);
+  EXPECT_LT(with_loose.max_translation_m, with_tight.max_translation_m + 0.02);
+  EXPECT_LT(with_loose.max_rotation_rad, with_tight.max_rotation_rad + 0.1 * kDeg);
+}
+
 TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
   const test::VehicleTrajectory steps(1.8, {{2.0, 0.0}, {2.5, 0.4}, {2.0, 0.0}, {2.5, -0.4}, {2.0, 0.0}},
                                       1e9, 0.25);
@@ -226,6 +253,22 @@ TEST(OdometryTest, ReportsPoseDeskewedScanAndMapPoints) {
   for (int k = 0; k < 5; ++k) {
     last = odometry.ProcessScan(test::SimulateVlp16(scene, pose_at, 0.1 * k, k));
     ASSERT_TRUE(last.ok()) << last.status().message();
+    // The ICP work it reports: none on the first scan (an empty map), then at least one run
+    // whose iterations and searches are among the summed ones.
+    const OdometryResult& r = last.value();
+    if (k == 0) {
+      EXPECT_EQ(r.registrations, 0);
+      EXPECT_EQ(r.icp_iterations, 0);
+    } else {
+      EXPECT_GE(r.registrations, 1);
+      EXPECT_GE(r.icp_iterations, r.icp.iterations);
+      EXPECT_GE(r.icp_iterations, r.registrations);
+      EXPECT_GE(r.icp_searches, r.icp.searches);
+      EXPECT_LE(r.icp_searches, r.icp_iterations);
+      // A second run is a refinement, hypotheses or the prior's release (tried, kept or not).
+      if (!r.refined && !r.turn_hypotheses_tried) EXPECT_LE(r.registrations, 2);
+      if (r.refined || r.motion_prior_released) EXPECT_GE(r.registrations, 2);
+    }
   }
   const OdometryResult& r = last.value();
   EXPECT_TRUE(r.registered);

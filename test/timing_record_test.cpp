@@ -45,6 +45,29 @@ TEST(TimingRecord, YamlHasTheMergeStagesAndTheirParts) {
   EXPECT_DOUBLE_EQ(stages["update_database"].as<double>(), 0.5);
 }
 
+TEST(TimingRecord, YamlHasTheOdometryStagesAndIcpWork) {
+  core::SessionTimings timings;
+  timings.odometry_registration_ms = {4.0, 8.0, 6.0};
+  timings.odometry_deskew_ms = {1.0};
+  timings.odometry_icp_iterations = {10.0, 30.0, 12.0, 14.0};
+  timings.odometry_registrations = {1.0, 1.0, 3.0};
+  const YAML::Node yaml = YAML::Load(core::TimingYaml(timings, core::SessionRunInfo{}));
+  const YAML::Node stages = yaml["odometry_stages_ms"];
+  ASSERT_TRUE(stages.IsMap());
+  EXPECT_DOUBLE_EQ(stages["registration"]["median"].as<double>(), 6.0);
+  EXPECT_EQ(stages["registration"]["samples"].as<int>(), 3);
+  EXPECT_DOUBLE_EQ(stages["deskew"]["median"].as<double>(), 1.0);
+  EXPECT_EQ(stages["filter"]["samples"].as<int>(), 0);
+  ASSERT_TRUE(stages["map_update"].IsMap());
+  ASSERT_TRUE(stages["downsample_normals"].IsMap());
+  const YAML::Node icp = yaml["odometry_icp_per_scan"];
+  ASSERT_TRUE(icp.IsMap());
+  EXPECT_DOUBLE_EQ(icp["iterations"]["median"].as<double>(), 13.0);
+  EXPECT_DOUBLE_EQ(icp["registrations"]["median"].as<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(icp["registrations"]["p95"].as<double>(), 3.0);
+  EXPECT_EQ(icp["searches"]["samples"].as<int>(), 0);
+}
+
 TEST(TimingRecord, PeakRssGrowsWithTouchedMemory) {
   const double before = core::ProcessPeakRssMb();
   EXPECT_GT(before, 1.0);  // a running test binary uses more than 1 MB

@@ -162,13 +162,20 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   prior.translation = result.prediction.translation();
   prior.weight = continuous ? config_.motion_prior_weight : 0.0;
   const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m) {
+    StatusOr<IcpResult> icp = Status::Error("icp: not run");
     if (source_normals.empty()) {
-      return icp_.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
+      icp = icp_.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
+    } else {
+      local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
+      icp = icp_.Register(source, source_normals, local_map_, guess, max_distance_m, kernel_m,
+                          prior);
+      local_map_.SetNormalsEnabled(true);
     }
-    local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
-    StatusOr<IcpResult> icp = icp_.Register(source, source_normals, local_map_, guess,
-                                            max_distance_m, kernel_m, prior);
-    local_map_.SetNormalsEnabled(true);
+    ++result.registrations;
+    if (icp.ok()) {
+      result.icp_iterations += icp.value().iterations;
+      result.icp_searches += icp.value().searches;
+    }
     return icp;
   };
   prepare(velocity);

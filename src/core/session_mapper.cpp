@@ -244,6 +244,14 @@ struct SessionMapper::State {
     }
     ++processed;
     timings.odometry_ms.push_back(result.timing.total_ms);
+    timings.odometry_filter_ms.push_back(result.timing.filter_ms);
+    timings.odometry_deskew_ms.push_back(result.timing.deskew_ms);
+    timings.odometry_downsample_ms.push_back(result.timing.downsample_ms);
+    timings.odometry_registration_ms.push_back(result.timing.registration_ms);
+    timings.odometry_map_update_ms.push_back(result.timing.map_update_ms);
+    timings.odometry_registrations.push_back(result.registrations);
+    timings.odometry_icp_iterations.push_back(result.icp_iterations);
+    timings.odometry_icp_searches.push_back(result.icp_searches);
     const auto start = std::chrono::steady_clock::now();
     // How far the odometry moved the scan from its prediction (a jump, see break_on_jump_m).
     const double jump_m = result.registered && processed > 1

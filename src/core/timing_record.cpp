@@ -46,6 +46,18 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   Emit(&out, "descriptor", timings.descriptor_ms);
   Emit(&out, "query", timings.query_ms);
   out << YAML::EndMap;
+  out << YAML::Key << "odometry_stages_ms" << YAML::Value << YAML::BeginMap;
+  Emit(&out, "filter", timings.odometry_filter_ms);
+  Emit(&out, "deskew", timings.odometry_deskew_ms);
+  Emit(&out, "downsample_normals", timings.odometry_downsample_ms);
+  Emit(&out, "registration", timings.odometry_registration_ms);
+  Emit(&out, "map_update", timings.odometry_map_update_ms);
+  out << YAML::EndMap;
+  out << YAML::Key << "odometry_icp_per_scan" << YAML::Value << YAML::BeginMap;
+  Emit(&out, "registrations", timings.odometry_registrations);
+  Emit(&out, "iterations", timings.odometry_icp_iterations);
+  Emit(&out, "searches", timings.odometry_icp_searches);
+  out << YAML::EndMap;
   out << YAML::Key << "per_submap_s" << YAML::Value << YAML::BeginMap;
   Emit(&out, "intra_loop", timings.intra_loop_s);
   Emit(&out, "optimisation", timings.optimisation_s);

@@ -66,6 +66,17 @@ struct SessionMapperConfig {
 /// Per-stage timing samples, for the timing records of the map (medians are computed there).
 struct SessionTimings {
   std::vector<double> odometry_ms;        ///< per scan: filter + de-skew + ICP + map update
+  /// Per scan, the odometry's stages (their sum is about odometry_ms).
+  std::vector<double> odometry_filter_ms;
+  std::vector<double> odometry_deskew_ms;
+  std::vector<double> odometry_downsample_ms;  ///< downsampling and the scan's normals
+  std::vector<double> odometry_registration_ms;
+  std::vector<double> odometry_map_update_ms;
+  /// Per scan, the odometry's ICP work: runs, summed iterations, summed correspondence
+  /// searches (OdometryResult::registrations and its neighbours).
+  std::vector<double> odometry_registrations;
+  std::vector<double> odometry_icp_iterations;
+  std::vector<double> odometry_icp_searches;
   std::vector<double> submap_building_ms;  ///< per scan
   std::vector<double> intra_loop_s;       ///< per finished submap: candidate registrations
   std::vector<double> optimisation_s;     ///< per pose graph solve
