@@ -34,6 +34,10 @@ def session_figures(record):
         'realtime_factor': duration / wall if wall and duration is not None else None,
         'odometry_ms_median': _get(record, 'per_scan_ms', 'deskew_odometry', 'median'),
         'odometry_ms_p95': _get(record, 'per_scan_ms', 'deskew_odometry', 'p95'),
+        'odometry_registration_ms_median': _get(record, 'odometry_stages_ms', 'registration',
+                                                'median'),
+        'odometry_icp_iterations_median': _get(record, 'odometry_icp_per_scan', 'iterations',
+                                               'median'),
         'descriptor_ms_median': _get(record, 'per_scan_ms', 'descriptor', 'median'),
         'query_ms_median': _get(record, 'per_scan_ms', 'query', 'median'),
         'submap_building_ms_median': _get(record, 'per_scan_ms', 'submap_building', 'median'),
@@ -59,7 +63,8 @@ def combine(per_session):
            'wall_time_s_total': float(sum(w for _, w in pairs)) if pairs else None,
            'merge_s_per_session': [s['merge_s'] for s in per_session],
            'peak_rss_mb': max(rss) if rss else None}
-    for key in ('odometry_ms_median', 'descriptor_ms_median', 'query_ms_median',
+    for key in ('odometry_ms_median', 'odometry_registration_ms_median',
+                'odometry_icp_iterations_median', 'descriptor_ms_median', 'query_ms_median',
                 'submap_building_ms_median', 'intra_loop_s_median',
                 'global_registration_s_median', 'dynamic_detection_s_per_pair_median'):
         out[key] = _median([s[key] for s in per_session])

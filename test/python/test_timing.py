@@ -27,3 +27,15 @@ def test_optional_growth_record():
     figures = timing.session_figures({'map_bytes_after_merge': 12345})
     assert figures['map_bytes_after_merge'] == 12345.0
     assert timing.session_figures({})['map_bytes_after_merge'] is None
+
+
+def test_odometry_stage_and_icp_work():
+    records = [{'odometry_stages_ms': {'registration': {'median': 12.0}},
+                'odometry_icp_per_scan': {'iterations': {'median': 9}}},
+               {'odometry_stages_ms': {'registration': {'median': 16.0}},
+                'odometry_icp_per_scan': {'iterations': {'median': 11}}},
+               {}]
+    t = timing.combine([timing.session_figures(r) for r in records])
+    assert t['odometry_registration_ms_median'] == pytest.approx(14.0)
+    assert t['odometry_icp_iterations_median'] == pytest.approx(10.0)
+    assert timing.session_figures({})['odometry_icp_iterations_median'] is None
