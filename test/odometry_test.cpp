@@ -106,8 +106,6 @@ TEST(OdometryTest, KeepsTrackInSharpTurns) {
   EXPECT_LT(e.final_translation_m, 0.15);
 }
 
-// Turns whose yaw rate steps from 0 to 0.4 rad/s and back within one scan (as the campus
-// simulator drives): the prediction and its de-skew are a whole step (2.3 deg) off there.
 // The odometry's convergence thresholds (1 mm, 1e-4 rad; the ICP's own are 0.1 mm, 1e-5 rad)
 // stop the iterations early for the same track.
 TEST(OdometryTest, DefaultConvergenceSavesIterationsNotAccuracy) {
@@ -131,6 +129,8 @@ TEST(OdometryTest, DefaultConvergenceSavesIterationsNotAccuracy) {
   EXPECT_LT(with_loose.max_rotation_rad, with_tight.max_rotation_rad + 0.1 * kDeg);
 }
 
+// Turns whose yaw rate steps from 0 to 0.4 rad/s and back within one scan (as the campus
+// simulator drives): the prediction and its de-skew are a whole step (2.3 deg) off there.
 TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
   const test::VehicleTrajectory steps(1.8, {{2.0, 0.0}, {2.5, 0.4}, {2.0, 0.0}, {2.5, -0.4}, {2.0, 0.0}},
                                       1e9, 0.25);
