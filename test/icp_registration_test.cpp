@@ -180,6 +180,41 @@ TEST(IcpRegistrationTest, SearchThreadsGiveTheSamePose) {
   EXPECT_FALSE(config.Validate().ok());
 }
 
+// A copy at other convergence steps (the odometry's judge): the coarse one stops sooner, and
+// the fine one run on from where it stopped lands where the fine one lands from the guess.
+TEST(IcpRegistrationTest, CopyWithOtherConvergenceRunsOnFromACoarseStop) {
+  const SyntheticPair pair = MakePair();
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.AddPoints(VoxelDownsample(pair.target, 0.1));
+  map.SetNormalsEnabled(false);
+  const PointVector source = VoxelDownsample(pair.source, 0.2);
+  const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.2, 0.1, 0.0, 0.0, 0.0, 1.0 * kDeg);
+  IcpConfig config;
+  config.point_to_point_fallback = true;
+  config.search_threads = 2;
+  config.max_iterations = 100;
+  const IcpRegistration fine = IcpRegistration::Create(config).value();
+  const StatusOr<IcpRegistration> coarse = fine.WithConvergence(3e-3, 3e-4, 100);
+  ASSERT_TRUE(coarse.ok()) << coarse.status().message();
+  EXPECT_DOUBLE_EQ(coarse.value().config().convergence_translation_m, 3e-3);
+  EXPECT_DOUBLE_EQ(coarse.value().config().convergence_rotation_rad, 3e-4);
+  EXPECT_EQ(coarse.value().config().search_threads, 2);
+  const StatusOr<IcpResult> direct = fine.Register(source, map, guess, 1.0, 0.2);
+  const StatusOr<IcpResult> stopped = coarse.value().Register(source, map, guess, 1.0, 0.2);
+  ASSERT_TRUE(direct.ok() && stopped.ok());
+  const StatusOr<IcpResult> continued =
+      fine.Register(source, map, stopped.value().pose, 1.0, 0.2);
+  ASSERT_TRUE(continued.ok());
+  std::cout << "iterations: fine " << direct.value().iterations << ", coarse "
+            << stopped.value().iterations << " + fine from there "
+            << continued.value().iterations << "\n";
+  EXPECT_TRUE(direct.value().converged && stopped.value().converged);
+  EXPECT_LT(stopped.value().iterations, direct.value().iterations);
+  ExpectPoseNear(continued.value().pose, direct.value().pose, 0.002, 0.01 * kDeg);
+  EXPECT_FALSE(fine.WithConvergence(-1.0, 1e-4, 30).ok());
+  EXPECT_FALSE(fine.WithConvergence(1e-3, 1e-4, 0).ok());
+}
+
 TEST(IcpRegistrationTest, FailsClearlyWithoutOverlapOrTarget) {
   const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
   VoxelHashMap empty = VoxelHashMap::Create(VoxelHashMapConfig()).value();

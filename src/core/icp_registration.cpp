@@ -55,6 +55,20 @@ StatusOr<IcpRegistration> IcpRegistration::Create(const IcpConfig& config) {
   return IcpRegistration(config);
 }
 
+StatusOr<IcpRegistration> IcpRegistration::WithConvergence(double translation_m,
+                                                          double rotation_rad,
+                                                          int max_iterations) const {
+  IcpConfig config = config_;
+  config.convergence_translation_m = translation_m;
+  config.convergence_rotation_rad = rotation_rad;
+  config.max_iterations = max_iterations;
+  const Status status = config.Validate();
+  if (!status.ok()) return status;
+  IcpRegistration copy = *this;  // shares pool_
+  copy.config_ = config;
+  return copy;
+}
+
 StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const RegistrationTarget& target,
                                               const Pose3& initial_guess) const {

@@ -77,6 +77,13 @@ Status OdometryConfig::Validate() const {
         "odometry.turn_hypothesis_trigger must be >= 0, turn_hypothesis_window_scans and "
         "turn_hypothesis_levels >= 1");
   }
+  if (!std::isfinite(judge_convergence_translation_m) || judge_convergence_translation_m < 0.0 ||
+      !std::isfinite(judge_convergence_rotation_rad) || judge_convergence_rotation_rad < 0.0 ||
+      judge_max_iterations < 1) {
+    return Status::Error(
+        "odometry.judge_convergence_translation_m / judge_convergence_rotation_rad must be >= 0 "
+        "and judge_max_iterations >= 1");
+  }
   if (velocity_window_scans < 1) {
     return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
                          std::to_string(velocity_window_scans));
@@ -93,22 +100,30 @@ StatusOr<Odometry> Odometry::Create(const OdometryConfig& config, const Pose3& i
   if (!status.ok()) return status;
   if (!se3::IsValid(initial_pose, 1e-4)) return Status::Error("odometry: invalid initial pose");
   // Every Create below validates a sub-config that Validate() already checked.
+  IcpRegistration icp = IcpRegistration::Create(config.icp).value();
+  // The judge is never coarser than the registration itself.
+  IcpRegistration judge_icp =
+      icp.WithConvergence(
+             std::min(config.icp.convergence_translation_m, config.judge_convergence_translation_m),
+             std::min(config.icp.convergence_rotation_rad, config.judge_convergence_rotation_rad),
+             std::max(config.icp.max_iterations, config.judge_max_iterations))
+          .value();
   return Odometry(config, se3::Normalized(initial_pose),
                   InputFilter::Create(config.input_filter).value(),
                   Deskewer::Create(config.deskew).value(),
-                  VoxelHashMap::Create(config.local_map).value(),
-                  IcpRegistration::Create(config.icp).value(),
-                  AdaptiveThreshold::Create(config.threshold).value());
+                  VoxelHashMap::Create(config.local_map).value(), std::move(icp),
+                  std::move(judge_icp), AdaptiveThreshold::Create(config.threshold).value());
 }
 
 Odometry::Odometry(const OdometryConfig& config, const Pose3& initial_pose, InputFilter filter,
                    Deskewer deskewer, VoxelHashMap map, IcpRegistration icp,
-                   AdaptiveThreshold threshold)
+                   IcpRegistration judge_icp, AdaptiveThreshold threshold)
     : config_(config),
       filter_(std::move(filter)),
       deskewer_(std::move(deskewer)),
       local_map_(std::move(map)),
       icp_(std::move(icp)),
+      judge_icp_(std::move(judge_icp)),
       threshold_(std::move(threshold)),
       pose_(initial_pose) {}
 
@@ -161,14 +176,17 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   IcpTranslationPrior prior;
   prior.translation = result.prediction.translation();
   prior.weight = continuous ? config_.motion_prior_weight : 0.0;
-  const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m) {
+  // Registers at the configured convergence, or at the judge's steps.
+  const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m,
+                                 bool at_judge_steps) {
+    const IcpRegistration& runner = at_judge_steps ? judge_icp_ : icp_;
     StatusOr<IcpResult> icp = Status::Error("icp: not run");
     if (source_normals.empty()) {
-      icp = icp_.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
+      icp = runner.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
     } else {
       local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
-      icp = icp_.Register(source, source_normals, local_map_, guess, max_distance_m, kernel_m,
-                          prior);
+      icp = runner.Register(source, source_normals, local_map_, guess, max_distance_m, kernel_m,
+                            prior);
       local_map_.SetNormalsEnabled(true);
     }
     ++result.registrations;
@@ -190,16 +208,29 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   const double kernel_m = config_.kernel_sigma_factor * sigma;
   Pose3 estimate = result.prediction;
   bool add_to_map = true;
+  // Whether result.icp ran at the judge's settings (see judge_convergence_translation_m):
+  // once one fit is compared with another, every later run of the scan is judged too.
+  bool judged = false;
   if (has_scan_ && !local_map_.empty()) {
-    StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m);
+    StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m, judged);
     // A poor fit with the prior: perhaps the motion model broke (a yaw-rate step), which the
     // prior must not hold; try without it (see the config).
     if (prior.weight > 0.0 && config_.motion_prior_release_ratio > 0.0 && median_weight &&
         (!icp.ok() ||
          icp.value().mean_weight < config_.motion_prior_release_ratio * *median_weight)) {
+      if (!judged) {
+        // Run on to the judge's steps from where the coarser run stopped.
+        if (icp.ok()) {
+          StatusOr<IcpResult> continued =
+              register_scan(icp.value().pose, max_distance_m, kernel_m, true);
+          if (continued.ok()) icp = std::move(continued);
+        }
+        judged = true;
+      }
       const double prior_weight = prior.weight;
       prior.weight = 0.0;
-      StatusOr<IcpResult> free_icp = register_scan(result.prediction, max_distance_m, kernel_m);
+      StatusOr<IcpResult> free_icp =
+          register_scan(result.prediction, max_distance_m, kernel_m, true);
       if (free_icp.ok() && (!icp.ok() || free_icp.value().mean_weight > icp.value().mean_weight)) {
         icp = std::move(free_icp);
         result.motion_prior_released = true;
@@ -218,6 +249,15 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   }
   result.timing.registration_ms += watch.Lap();
 
+  // Runs the registration on from where it stopped to the judge's steps, once per scan.
+  const auto run_on_to_judge_steps = [&]() {
+    if (judged) return;
+    judged = true;
+    StatusOr<IcpResult> continued = register_scan(estimate, max_distance_m, kernel_m, true);
+    if (!continued.ok()) return;
+    result.icp = continued.value();
+    estimate = continued.value().pose;
+  };
   se3::Vector6d estimated_velocity = velocity;
   if (result.registered && continuous && dt > 0.0) {
     estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
@@ -228,9 +268,15 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     if (config_.refine_deskew && result.deskew_stats.applied &&
         (se3::TranslationNorm(mismatch) > config_.refine_min_translation_m ||
          se3::RotationAngleRad(mismatch) > config_.refine_min_rotation_rad)) {
+      // The new de-skew takes its rotation rate from this scan's own estimate, which a
+      // coarse stop lags in a turn's first scan.
+      watch.Lap();
+      run_on_to_judge_steps();
+      estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
+      result.timing.registration_ms += watch.Lap();
       prepare(estimated_velocity);
       watch.Lap();
-      StatusOr<IcpResult> refined = register_scan(estimate, max_distance_m, kernel_m);
+      StatusOr<IcpResult> refined = register_scan(estimate, max_distance_m, kernel_m, judged);
       if (refined.ok()) {
         result.icp = refined.value();
         estimate = refined.value().pose;
@@ -246,6 +292,10 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
     // one scan leaves the prediction (and its de-skew) a whole step off.
     result.turn_hypotheses_tried = true;
+    if (!judged) {  // the registration they are compared with
+      run_on_to_judge_steps();
+      estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
+    }
     const double step = config_.turn_hypothesis_step_rad_s;
     const double predicted_rate = velocity(5);
     std::vector<double> rates;
@@ -276,7 +326,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       v(5) = rate;
       const Pose3 guess = se3::Normalized(pose_ * se3::Exp(v * dt));
       prepare(v);
-      StatusOr<IcpResult> h = register_scan(guess, max_distance_m, kernel_m);
+      StatusOr<IcpResult> h = register_scan(guess, max_distance_m, kernel_m, true);
       if (!h.ok() || !(h.value().mean_weight > best.score)) continue;
       best = Best{h.value().mean_weight, h.value().pose, h.value(),
                   std::move(result.deskewed_scan), std::move(result.map_points),

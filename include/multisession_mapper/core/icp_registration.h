@@ -140,6 +140,12 @@ class IcpRegistration {
                                double max_correspondence_distance_m, double kernel_scale_m,
                                const IcpTranslationPrior& prior = IcpTranslationPrior()) const;
 
+  /// A copy that converges at steps under these [m], [rad] (>= 0) or stops after
+  /// `max_iterations` (>= 1), and shares this one's search threads (the two then take turns
+  /// on them): one configuration, two precisions.
+  StatusOr<IcpRegistration> WithConvergence(double translation_m, double rotation_rad,
+                                            int max_iterations) const;
+
   const IcpConfig& config() const { return config_; }
 
  private:
