@@ -342,6 +342,26 @@ TEST_F(OfflineMapperBadInputTest, CorruptPointBytesAreDroppedAsNonFinite) {
   }
 }
 
+// How far the odometry thread may run ahead changes only the speed: the trajectories are the
+// same with a queue of 1 as with the default; 0 is refused before anything is written.
+TEST_F(OfflineMapperBadInputTest, OdometryQueueChangesNothingButIsChecked) {
+  const std::string bag = WriteBag("queue", Clouds());
+  for (const char* name : {"queue_default", "queue_1", "queue_0"}) fs::remove_all(kTmp + "/" + name);
+  const MapperRun by_default = RunMapper(bag, kTmp + "/queue_default");
+  ASSERT_EQ(by_default.exit_code, 0) << by_default.log;
+  const MapperRun one = RunMapper(bag, kTmp + "/queue_1", "--odometry-queue 1");
+  ASSERT_EQ(one.exit_code, 0) << one.log;
+  const std::string trajectory = "/trajectories/queue.tum";
+  const std::string expected = ReadText(kTmp + "/queue_default" + trajectory);
+  EXPECT_FALSE(expected.empty());
+  EXPECT_EQ(ReadText(kTmp + "/queue_1" + trajectory), expected);
+  const MapperRun zero = RunMapper(bag, kTmp + "/queue_0", "--odometry-queue 0");
+  EXPECT_EQ(zero.exit_code, 2) << zero.log;
+  EXPECT_NE(zero.log.find("--odometry-queue needs a whole number >= 1"), std::string::npos)
+      << zero.log;
+  EXPECT_FALSE(fs::exists(kTmp + "/queue_0"));
+}
+
 TEST_F(OfflineMapperBadInputTest, NotABagIsRefused) {
   const std::string path = kTmp + "/not_a_bag.bag";
   std::ofstream(path) << "this is not a rosbag\n";
