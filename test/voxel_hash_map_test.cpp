@@ -45,6 +45,45 @@ TEST(VoxelHashMapTest, NearestNeighbourMatchesBruteForceWithinOneVoxel) {
   EXPECT_GT(found, 1000);
 }
 
+// The searches cache each center voxel's 27 neighbour ids; points added in new voxels
+// between searches (the odometry adds a scan after each registration) must enter the cached
+// neighbourhoods: the matches stay those of a map built at once, scan after scan.
+TEST(VoxelHashMapTest, SearchesBetweenInsertionsSeeTheNewVoxels) {
+  VoxelHashMapConfig config;
+  config.max_points_per_voxel = 1000;
+  config.min_point_spacing_m = 0.0;
+  VoxelHashMap grown = VoxelHashMap::Create(config).value();
+  VoxelHashMap fresh = VoxelHashMap::Create(config).value();
+  grown.SetNormalsEnabled(false);
+  fresh.SetNormalsEnabled(false);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-6.0, 6.0);
+  PointVector queries;
+  for (int i = 0; i < 3000; ++i) queries.emplace_back(u(rng), u(rng), u(rng) * 0.5);
+  PointVector all;
+  for (int batch = 0; batch < 6; ++batch) {
+    PointVector points;  // sparse batches: most land in voxels that were empty
+    for (int i = 0; i < 150; ++i) points.emplace_back(u(rng), u(rng), u(rng) * 0.5);
+    grown.AddPoints(points);
+    all.insert(all.end(), points.begin(), points.end());
+    fresh = VoxelHashMap::Create(config).value();
+    fresh.SetNormalsEnabled(false);
+    fresh.AddPoints(all);
+    std::vector<std::uint8_t> found_grown, found_fresh;
+    std::vector<TargetMatch> grown_matches, fresh_matches;
+    grown.FindMatches(queries, 1.0, false, nullptr, &found_grown, &grown_matches);
+    fresh.FindMatches(queries, 1.0, false, nullptr, &found_fresh, &fresh_matches);
+    int found = 0;
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      ASSERT_EQ(found_grown[i], found_fresh[i]) << "batch " << batch << " query " << i;
+      if (found_grown[i] == 0) continue;
+      ++found;
+      ASSERT_EQ(grown_matches[i].point, fresh_matches[i].point) << "batch " << batch;
+    }
+    if (batch == 5) EXPECT_GT(found, 1000);
+  }
+}
+
 TEST(VoxelHashMapTest, WarmStartedFindMatchesGivesTheColdMatches) {
   // What an ICP does: search, move the queries a little, search again bounded by the previous
   // matches. The bound must not change a single match, on the parallel and the sequential

@@ -69,21 +69,31 @@ VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
 
 void VoxelHashMap::ClearNeighbourCache() {
   if (neighbour_cache_.empty()) return;
-  neighbour_cache_.clear();
+  neighbour_cache_.Release();
   neighbour_ids_.clear();
 }
 
+void VoxelHashMap::AddToCachedNeighbourhoods(const VoxelIndex& index, std::uint32_t id) {
+  if (neighbour_cache_.empty()) return;
+  // The new voxel is neighbour k of the center index - offset k.
+  for (int k = 0; k < kNeighbourhood; ++k) {
+    const Offset& o = kNeighbourOrder[k];
+    const std::uint32_t cached = neighbour_cache_.Find(index - VoxelIndex(o.dx, o.dy, o.dz));
+    if (cached != VoxelIndexTable::kEmpty) {
+      neighbour_ids_[cached + k] = static_cast<std::int32_t>(id);
+    }
+  }
+}
+
 std::uint32_t VoxelHashMap::NeighbourOffset(const VoxelIndex& center) const {
-  const std::uint64_t key = Key(center);
-  const auto found = neighbour_cache_.find(key);
-  if (found != neighbour_cache_.end()) return found->second;
   const std::uint32_t offset = static_cast<std::uint32_t>(neighbour_ids_.size());
+  const auto found = neighbour_cache_.FindOrInsert(center, offset);
+  if (!found.second) return found.first;
   neighbour_ids_.resize(neighbour_ids_.size() + kNeighbourhood);
   for (int k = 0; k < kNeighbourhood; ++k) {
     const Offset& o = kNeighbourOrder[k];
     neighbour_ids_[offset + k] = Find(center + VoxelIndex(o.dx, o.dy, o.dz));
   }
-  neighbour_cache_.emplace(key, offset);
   return offset;
 }
 
@@ -97,13 +107,6 @@ void VoxelHashMap::Clear() {
   table_.Release();
 }
 
-std::uint64_t VoxelHashMap::Key(const VoxelIndex& index) {
-  const auto axis = [](int v) {
-    return static_cast<std::uint64_t>(static_cast<std::int64_t>(v) + (1 << 20)) & 0x1FFFFFu;
-  };
-  return (axis(index.x()) << 42) | (axis(index.y()) << 21) | axis(index.z());
-}
-
 int VoxelHashMap::Find(const VoxelIndex& index) const {
   const std::uint32_t id = table_.Find(index);
   return id == VoxelIndexTable::kEmpty ? -1 : static_cast<int>(id);
@@ -112,7 +115,7 @@ int VoxelHashMap::Find(const VoxelIndex& index) const {
 int VoxelHashMap::FindOrInsert(const VoxelIndex& index) {
   const auto found = table_.FindOrInsert(index, static_cast<std::uint32_t>(voxels_.size()));
   if (!found.second) return static_cast<int>(found.first);
-  ClearNeighbourCache();  // a new voxel: cached neighbourhoods may miss it
+  AddToCachedNeighbourhoods(index, found.first);
   voxels_.emplace_back();
   voxels_.back().index = index;
   boxes_.emplace_back();
