@@ -208,25 +208,27 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   const double kernel_m = config_.kernel_sigma_factor * sigma;
   Pose3 estimate = result.prediction;
   bool add_to_map = true;
-  // Whether result.icp ran at the judge's settings (see judge_convergence_translation_m):
-  // once one fit is compared with another, every later run of the scan is judged too.
+  // Whether the scan's registration ran at the judge's settings (see
+  // judge_convergence_translation_m): once one fit is compared with another, every later run
+  // of the scan is judged too.
   bool judged = false;
+  // Runs the registration `fit` on from where it stopped to the judge's settings, once per
+  // scan.
+  const auto run_on_to_judge_steps = [&](IcpResult* fit) {
+    if (judged) return;
+    judged = true;
+    StatusOr<IcpResult> continued = register_scan(fit->pose, max_distance_m, kernel_m, true);
+    if (continued.ok()) *fit = continued.value();
+  };
   if (has_scan_ && !local_map_.empty()) {
-    StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m, judged);
+    StatusOr<IcpResult> icp = register_scan(result.prediction, max_distance_m, kernel_m, false);
     // A poor fit with the prior: perhaps the motion model broke (a yaw-rate step), which the
     // prior must not hold; try without it (see the config).
     if (prior.weight > 0.0 && config_.motion_prior_release_ratio > 0.0 && median_weight &&
         (!icp.ok() ||
          icp.value().mean_weight < config_.motion_prior_release_ratio * *median_weight)) {
-      if (!judged) {
-        // Run on to the judge's steps from where the coarser run stopped.
-        if (icp.ok()) {
-          StatusOr<IcpResult> continued =
-              register_scan(icp.value().pose, max_distance_m, kernel_m, true);
-          if (continued.ok()) icp = std::move(continued);
-        }
-        judged = true;
-      }
+      if (icp.ok()) run_on_to_judge_steps(&icp.value());
+      judged = true;  // the run without the prior below is judged either way
       const double prior_weight = prior.weight;
       prior.weight = 0.0;
       StatusOr<IcpResult> free_icp =
@@ -249,16 +251,14 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   }
   result.timing.registration_ms += watch.Lap();
 
-  // Runs the registration on from where it stopped to the judge's steps, once per scan.
-  const auto run_on_to_judge_steps = [&]() {
-    if (judged) return;
-    judged = true;
-    StatusOr<IcpResult> continued = register_scan(estimate, max_distance_m, kernel_m, true);
-    if (!continued.ok()) return;
-    result.icp = continued.value();
-    estimate = continued.value().pose;
-  };
   se3::Vector6d estimated_velocity = velocity;
+  // The scan's registration run on to the judge's settings (once), and its velocity.
+  const auto judge_registration = [&]() {
+    if (judged) return;
+    run_on_to_judge_steps(&result.icp);
+    estimate = result.icp.pose;
+    estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
+  };
   if (result.registered && continuous && dt > 0.0) {
     estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
     // The prediction's velocity was wrong over this sweep (start, sharp turn): de-skew again
@@ -271,8 +271,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       // The new de-skew takes its rotation rate from this scan's own estimate, which a
       // coarse stop lags in a turn's first scan.
       watch.Lap();
-      run_on_to_judge_steps();
-      estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
+      judge_registration();
       result.timing.registration_ms += watch.Lap();
       prepare(estimated_velocity);
       watch.Lap();
@@ -292,10 +291,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
     // one scan leaves the prediction (and its de-skew) a whole step off.
     result.turn_hypotheses_tried = true;
-    if (!judged) {  // the registration they are compared with
-      run_on_to_judge_steps();
-      estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
-    }
+    judge_registration();  // the registration they are compared with
     const double step = config_.turn_hypothesis_step_rad_s;
     const double predicted_rate = velocity(5);
     std::vector<double> rates;

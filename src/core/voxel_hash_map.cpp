@@ -257,7 +257,8 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
     }
     return;
   }
-  // The neighbour cache's only writer is this loop; the parallel part below only reads.
+  // Within a search the neighbour cache's only writer is this loop; the parallel part below
+  // only reads.
   std::vector<VoxelIndex> centers(n);
   std::vector<std::uint32_t> offsets(n);
   std::vector<double> bounds(n);

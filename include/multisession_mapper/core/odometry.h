@@ -199,9 +199,10 @@ struct OdometryConfig {
   /// first runs its registration on from where it stopped with these settings, and every
   /// later run of the scan uses them; the other scans (most: 1 ICP run per scan median, 3
   /// at p95 on `campus` seed-1 s00) keep the coarser, cheaper registration. Never coarser
-  /// than `icp` (the smaller steps and the larger iteration count of the two apply). `odometry_test` yaw-rate steps, the hypotheses on
-  /// every scan: worst yaw error 0.27 deg with the judge, 0.56 deg without (a hypothesis
-  /// that needs more than 30 iterations to turn back 2.3 deg stopped half-way and lost).
+  /// than `icp` (the smaller steps and the larger iteration count of the two apply).
+  /// `odometry_test` yaw-rate steps, the hypotheses on every scan: worst yaw error 0.27 deg
+  /// with the judge, 0.56 deg without (a hypothesis that needs more than 30 iterations to
+  /// turn back 2.3 deg stopped half-way and lost).
   double judge_convergence_translation_m = 1e-3;
   double judge_convergence_rotation_rad = 1e-4;
   int judge_max_iterations = 60;

@@ -105,7 +105,6 @@ class VoxelHashMap : public RegistrationTarget {
 
   explicit VoxelHashMap(const VoxelHashMapConfig& config);
   VoxelIndex IndexOf(const Eigen::Vector3d& p) const;
-  /// Packs a voxel index (21 bits per axis, +-1M voxels) into a neighbour-cache key.
   /// Index into voxels_ or -1.
   int Find(const VoxelIndex& index) const;
   /// Index into voxels_, creating an empty voxel when absent.
