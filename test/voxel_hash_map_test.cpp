@@ -80,7 +80,60 @@ TEST(VoxelHashMapTest, SearchesBetweenInsertionsSeeTheNewVoxels) {
       ++found;
       ASSERT_EQ(grown_matches[i].point, fresh_matches[i].point) << "batch " << batch;
     }
-    if (batch == 5) EXPECT_GT(found, 1000);
+    if (batch == 5) {
+      EXPECT_GT(found, 1000);
+    }
+  }
+}
+
+TEST(VoxelHashMapTest, RepeatedSearchesAcrossRemovalsMatchBruteForce) {
+  // A search reuses each query's neighbourhood from the previous search while the query
+  // stays in its voxel. Insertions add voxels and removals move the ids: searches of the same
+  // queries between them must still find the nearest map point (brute force over Points()),
+  // on the sequential and the parallel path.
+  VoxelHashMapConfig config;
+  config.max_points_per_voxel = 1000;  // keep every point
+  config.min_point_spacing_m = 0.0;
+  config.max_distance_m = 12.0;
+  std::mt19937 rng(33);
+  std::uniform_real_distribution<double> u(-12.0, 12.0);
+  PointVector queries;
+  for (int i = 0; i < 1500; ++i) queries.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+  for (const int threads : {1, 2}) {
+    WorkerPool pool(threads);
+    VoxelHashMap map = VoxelHashMap::Create(config).value();
+    map.SetNormalsEnabled(false);
+    Eigen::Vector3d robot = Eigen::Vector3d::Zero();
+    int compared = 0;
+    for (int step = 0; step < 4; ++step) {
+      PointVector points;
+      for (int i = 0; i < 1500; ++i) points.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+      map.AddPoints(points);  // after a search: new voxels in reused neighbourhoods
+      std::vector<std::uint8_t> found;
+      std::vector<TargetMatch> matches;
+      for (const bool remove : {false, true}) {
+        if (remove) {
+          robot += Eigen::Vector3d(3.0, -2.0, 0.0);
+          map.RemoveFarVoxels(robot);
+        }
+        map.FindMatches(queries, 1.0, false, &pool, &found, &matches);
+        const PointVector content = map.Points();
+        ASSERT_EQ(found.size(), queries.size());
+        for (std::size_t i = 0; i < queries.size(); ++i) {
+          double best = std::numeric_limits<double>::infinity();
+          for (const Eigen::Vector3d& p : content) {
+            best = std::min(best, (p - queries[i]).squaredNorm());
+          }
+          ASSERT_EQ(found[i] != 0, best <= 1.0)
+              << threads << " threads, step " << step << ", query " << i;
+          if (found[i] == 0) continue;
+          ++compared;
+          ASSERT_NEAR(matches[i].distance_sq, best, 1e-12) << threads << " threads";
+        }
+      }
+    }
+    EXPECT_LT(map.NumPoints(), 4u * 1500u) << "the removals removed nothing";
+    EXPECT_GT(compared, 4000) << threads << " threads";
   }
 }
 

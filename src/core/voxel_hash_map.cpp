@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "multisession_mapper/core/worker_pool.h"
@@ -23,6 +24,11 @@ constexpr Offset kNeighbourOrder[kNeighbourhood] = {
     {1, 0, -1}, {1, 0, 1}, {0, -1, -1}, {0, -1, 1}, {0, 1, -1}, {0, 1, 1},
     {-1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}, {-1, 1, 1},                           // corners
     {1, -1, -1}, {1, -1, 1}, {1, 1, -1}, {1, 1, 1}};
+
+// One expression for the search and the recall of a match, so both give the same bits.
+inline double SquaredDistance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return (a - b).squaredNorm();
+}
 
 }  // namespace
 
@@ -68,6 +74,7 @@ VoxelHashMap::VoxelHashMap(const VoxelHashMapConfig& config)
       stride_(static_cast<std::size_t>(config.max_points_per_voxel)) {}
 
 void VoxelHashMap::ClearNeighbourCache() {
+  memory_.clear();
   if (neighbour_cache_.empty()) return;
   neighbour_cache_.Release();
   neighbour_ids_.clear();
@@ -97,7 +104,46 @@ std::uint32_t VoxelHashMap::NeighbourOffset(const VoxelIndex& center) const {
   return offset;
 }
 
+std::uint32_t VoxelHashMap::QueryNeighbourOffset(std::size_t i, const VoxelIndex& center) const {
+  QueryMemory& memory = memory_[i];
+  if (memory.offset != VoxelIndexTable::kEmpty && memory.center == center) return memory.offset;
+  memory.offset = NeighbourOffset(center);
+  memory.center = center;
+  memory.has_match = false;  // remembered for another neighbourhood
+  return memory.offset;
+}
+
+bool VoxelHashMap::SearchOrRecall(std::size_t i, const Eigen::Vector3d& query,
+                                  const VoxelIndex& center, const std::int32_t* ids,
+                                  double bound_sq, bool recall, TargetMatch* match) const {
+  QueryMemory& memory = memory_[i];
+  if (recall && memory.has_match) {
+    // Every other point is at least clear - moved from the query now, the remembered one at
+    // distance: it is the only nearest while distance < clear - moved (with a margin far
+    // above the rounding of these sums, ~1e-13 m at 1 km).
+    const double moved = (query - memory.query).norm();
+    const double distance_sq = SquaredDistance(memory.match, query);
+    if (std::sqrt(distance_sq) + moved + 1e-9 < std::sqrt(memory.clear_sq)) {
+      if (!(distance_sq < bound_sq)) return false;  // as MatchAround: only below the bound
+      match->point = memory.match;
+      match->distance_sq = distance_sq;
+      match->has_normal = false;
+      return true;
+    }
+  }
+  double clear_sq = 0.0;
+  const bool found = MatchAround(query, center, ids, bound_sq, match, &clear_sq);
+  memory.query = query;
+  memory.has_match = found;
+  if (found) {
+    memory.match = match->point;
+    memory.clear_sq = clear_sq;
+  }
+  return found;
+}
+
 void VoxelHashMap::Clear() {
+  ++content_version_;
   ClearNeighbourCache();
   voxels_.clear();
   boxes_.clear();
@@ -153,10 +199,16 @@ void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
   const double spacing_sq = config_.min_point_spacing_m * config_.min_point_spacing_m;
   const std::size_t max_points = static_cast<std::size_t>(config_.max_points_per_voxel);
   std::vector<VoxelIndex> changed;
+  // Successive points of a scan often share a voxel: look the index up only when it changes.
+  VoxelIndex last_index(std::numeric_limits<int>::min(), 0, 0);
+  int id = -1;
   for (const Eigen::Vector3d& p : points_in_map) {
     if (!p.allFinite()) continue;
     const VoxelIndex index = IndexOf(p);
-    const int id = FindOrInsert(index);
+    if (index != last_index) {
+      id = FindOrInsert(index);
+      last_index = index;
+    }
     Voxel& voxel = voxels_[id];
     SearchBox& box = boxes_[id];
     if (box.count >= max_points) continue;
@@ -173,6 +225,7 @@ void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
       box.high = box.high.cwiseMax(p);
     }
     points[box.count++] = p;
+    ++content_version_;
     if (voxel.last_insert_epoch != epoch_) {
       voxel.last_insert_epoch = epoch_;
       changed.push_back(index);
@@ -212,6 +265,7 @@ void VoxelHashMap::RemoveFarVoxels(const Eigen::Vector3d& position_m) {
     ++kept;
   }
   if (kept == voxels_.size()) return;
+  ++content_version_;
   ClearNeighbourCache();  // ids moved
   voxels_.resize(kept);
   boxes_.resize(kept);
@@ -246,14 +300,22 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
     const bool previous = hints && (*found)[i] != 0;
     return WarmStartBoundSq(previous ? &(*matches)[i] : nullptr, queries[i], max_sq);
   };
+  if (memory_.size() != n) memory_.assign(n, QueryMemory());  // another query set
+  // Recall needs the map unchanged since the matches were remembered, and no normals (a
+  // match with normals is computed by MatchAround only).
+  const bool recall = memory_version_ == content_version_ && !normals_enabled_;
+  memory_version_ = content_version_;
   if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries) {
     if (!hints) found->assign(n, 0);
     matches->resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const VoxelIndex center = IndexOf(queries[i]);
       const double bound = bound_sq(i);
-      (*found)[i] =
-          MatchAround(queries[i], center, NeighbourIds(center), bound, &(*matches)[i]) ? 1 : 0;
+      const std::uint32_t offset = QueryNeighbourOffset(i, center);  // may grow the ids: first
+      (*found)[i] = SearchOrRecall(i, queries[i], center, neighbour_ids_.data() + offset, bound,
+                                   recall, &(*matches)[i])
+                        ? 1
+                        : 0;
     }
     return;
   }
@@ -264,7 +326,7 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
   std::vector<double> bounds(n);
   for (std::size_t i = 0; i < n; ++i) {
     centers[i] = IndexOf(queries[i]);
-    offsets[i] = NeighbourOffset(centers[i]);
+    offsets[i] = QueryNeighbourOffset(i, centers[i]);
     bounds[i] = bound_sq(i);
   }
   found->assign(n, 0);
@@ -274,15 +336,17 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
     const std::size_t end = std::min(n, (block + 1) * kBlock);
     for (std::size_t i = block * kBlock; i < end; ++i) {
       (*found)[i] =
-          MatchAround(queries[i], centers[i], ids + offsets[i], bounds[i], &(*matches)[i]) ? 1
-                                                                                            : 0;
+          SearchOrRecall(i, queries[i], centers[i], ids + offsets[i], bounds[i], recall,
+                         &(*matches)[i])
+              ? 1
+              : 0;
     }
   });
 }
 
 bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,
-                               const std::int32_t* ids, double bound_sq,
-                               TargetMatch* match) const {
+                               const std::int32_t* ids, double bound_sq, TargetMatch* match,
+                               double* clear_sq) const {
   const double size = config_.voxel_size_m;
   // Distance from the query to the low / high face of its own voxel, per axis.
   const Eigen::Vector3d low = query - center.cast<double>() * size;
@@ -291,6 +355,9 @@ bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& c
   double best_sq = bound_sq;
   int best_id = -1;
   std::size_t best_index = 0;
+  // Lower bound on the squared distance to every point but the best (for clear_sq): what a
+  // skipped voxel or box could hold at least, and the points examined and not kept.
+  double clear = std::numeric_limits<double>::infinity();
   for (int k = 0; k < kNeighbourhood; ++k) {
     const int id = ids[k];
     if (id < 0) continue;
@@ -300,23 +367,35 @@ bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& c
       const double gx = o.dx < 0 ? low.x() : (o.dx > 0 ? high.x() : 0.0);
       const double gy = o.dy < 0 ? low.y() : (o.dy > 0 ? high.y() : 0.0);
       const double gz = o.dz < 0 ? low.z() : (o.dz > 0 ? high.z() : 0.0);
-      if (gx * gx + gy * gy + gz * gz >= best_sq) continue;
+      const double face_sq = gx * gx + gy * gy + gz * gz;
+      if (face_sq >= best_sq) {
+        clear = std::min(clear, face_sq);
+        continue;
+      }
     }
     // Same test against the box of the voxel's points, tighter (surfaces are thin).
     const SearchBox& box = boxes_[id];
     const Eigen::Vector3d gap = (box.low - query).cwiseMax(query - box.high).cwiseMax(0.0);
-    if (gap.squaredNorm() >= best_sq) continue;
+    const double gap_sq = gap.squaredNorm();
+    if (gap_sq >= best_sq) {
+      clear = std::min(clear, gap_sq);
+      continue;
+    }
     const Eigen::Vector3d* pts = PointsOf(static_cast<std::size_t>(id));
     const std::size_t n = box.count;
     for (std::size_t i = 0; i < n; ++i) {
-      const double d = (pts[i] - query).squaredNorm();
+      const double d = SquaredDistance(pts[i], query);
       if (d < best_sq) {
+        if (best_id >= 0) clear = std::min(clear, best_sq);  // the best so far is an other
         best_sq = d;
         best_id = id;
         best_index = i;
+      } else {
+        clear = std::min(clear, d);
       }
     }
   }
+  if (clear_sq != nullptr) *clear_sq = clear;
   if (best_id < 0) return false;
 
   const Voxel* best_voxel = &voxels_[best_id];

@@ -125,11 +125,23 @@ class VoxelHashMap : public RegistrationTarget {
   /// Offset of those 27 ids in neighbour_ids_ (stable until the cache is cleared; pointers
   /// are not, the vector grows).
   std::uint32_t NeighbourOffset(const VoxelIndex& center) const;
+  /// NeighbourOffset of query i's `center`, reusing the last FindMatches' offset when query i
+  /// had the same center then (same result, no look-up).
+  std::uint32_t QueryNeighbourOffset(std::size_t i, const VoxelIndex& center) const;
+  /// FindMatches' search for query i: recalls its last match when that is provably still the
+  /// nearest point (see QueryMemory, `recall`: the map is unchanged since), otherwise
+  /// searches with MatchAround and remembers what it found.
+  bool SearchOrRecall(std::size_t i, const Eigen::Vector3d& query, const VoxelIndex& center,
+                      const std::int32_t* ids, double bound_sq, bool recall,
+                      TargetMatch* match) const;
   /// FindMatch's search among the voxels `ids` around `center`, the voxel of `query`, for the
   /// nearest point closer than sqrt(bound_sq). Reads only, unless normals are enabled (they
   /// are computed and cached on demand).
+  /// With `clear_sq`: a lower bound on the squared distance from `query` to every point of
+  /// those voxels other than the match (infinite when there is none).
   bool MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,
-                   const std::int32_t* ids, double bound_sq, TargetMatch* match) const;
+                   const std::int32_t* ids, double bound_sq, TargetMatch* match,
+                   double* clear_sq = nullptr) const;
   void ClearNeighbourCache();
   /// Enters the new voxel `id` at `index` into the cached neighbourhoods that contain it.
   void AddToCachedNeighbourhoods(const VoxelIndex& index, std::uint32_t id);
@@ -149,6 +161,28 @@ class VoxelHashMap : public RegistrationTarget {
   /// Center voxel -> offset of its 27 ids in neighbour_ids_ (open addressing, as table_).
   mutable VoxelIndexTable neighbour_cache_;
   mutable std::vector<std::int32_t> neighbour_ids_;  ///< 27 per cached center
+  /// What the last search of query i (FindMatches' i-th query) found, for its next search.
+  /// An ICP searches the same source points at every iteration and they move by millimetres:
+  /// - the neighbour-cache offset is reused while the query stays in its voxel (no look-up);
+  /// - the nearest point is recalled without a search while the map is unchanged and the
+  ///   query moved by less than half the gap between that point and every other point of its
+  ///   neighbourhood (then it is still the only nearest one: the same result as a search).
+  struct QueryMemory {
+    Eigen::Vector3d query = Eigen::Vector3d::Zero();  ///< where it was last searched [m]
+    Eigen::Vector3d match = Eigen::Vector3d::Zero();  ///< the nearest point found there
+    /// Every other point of the 27 voxels around `center` is at least this far from `query`
+    /// (squared [m^2]; a lower bound from the points, boxes and voxel faces the search saw).
+    double clear_sq = 0.0;
+    VoxelIndex center = VoxelIndex::Zero();
+    std::uint32_t offset = VoxelIndexTable::kEmpty;  ///< in neighbour_ids_; kEmpty: look up
+    bool has_match = false;  ///< `match` is valid (found within that search's bound)
+  };
+  /// Per query of the last FindMatches (emptied with the neighbour cache).
+  mutable std::vector<QueryMemory> memory_;
+  /// content_version_ at the last FindMatches: the matches in memory_ hold while it is equal.
+  mutable std::uint64_t memory_version_ = 0;
+  /// Changes whenever a point is added or removed.
+  std::uint64_t content_version_ = 1;
   Eigen::Vector3d last_removal_position_m_ = Eigen::Vector3d::Zero();
   // Voxel index -> id in voxels_ (open addressing: ~3x faster lookups than
   // std::unordered_map here, which dominate the ICP's run time).
