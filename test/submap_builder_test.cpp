@@ -79,14 +79,17 @@ bool OnCarPath(const Eigen::Vector3d& p_world) {
 struct Result {
   int car_points = 0;
   int static_points = 0;
+  PointVector points;  ///< every submap point, map frame, in submap and storage order
+  std::uint64_t dropped = 0;
 };
 
 // Robot creeps along x while the car crosses its view at 4 m/s, then turns off the road (out
 // of view) for the last 4 s.
-Result RunCrossingCar(bool filter_enabled, int grow_depth = 2) {
+Result RunCrossingCar(bool filter_enabled, int grow_depth = 2, int check_threads = 2) {
   SubmapBuilderConfig config;
   config.dynamic_filter.enabled = filter_enabled;
   config.dynamic_filter.grow_depth = grow_depth;
+  config.dynamic_filter.check_threads = check_threads;
   StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
   EXPECT_TRUE(builder.ok()) << builder.status().message();
   std::mt19937 rng(1);
@@ -103,9 +106,27 @@ Result RunCrossingCar(bool filter_enabled, int grow_depth = 2) {
   for (const Submap& submap : builder.value().TakeFinished()) {
     for (const Eigen::Vector3d& p : submap.points) {
       (OnCarPath(submap.T_map_submap * p) ? result.car_points : result.static_points)++;
+      result.points.push_back(submap.T_map_submap * p);
     }
   }
+  result.dropped = builder.value().stats().voxels_dropped_dynamic;
   return result;
+}
+
+TEST(SubmapBuilder, CheckThreadsChangeNothing) {
+  // The visibility check's voxels are split over the threads; each voxel's evidence is its
+  // own, so the submaps must be the same point for point with 1, 2 and 3 threads.
+  const Result one = RunCrossingCar(true, 2, 1);
+  ASSERT_GT(one.dropped, 100u) << "the check must have dropped the car";
+  ASSERT_GT(one.points.size(), 20000u) << "several blocks of voxels per check";
+  for (const int threads : {2, 3}) {
+    const Result more = RunCrossingCar(true, 2, threads);
+    EXPECT_EQ(more.dropped, one.dropped) << threads << " threads";
+    ASSERT_EQ(more.points.size(), one.points.size()) << threads << " threads";
+    for (std::size_t i = 0; i < one.points.size(); ++i) {
+      ASSERT_EQ(more.points[i], one.points[i]) << threads << " threads, point " << i;
+    }
+  }
 }
 
 TEST(SubmapBuilder, MovingCarIsRemovedAndStaticWorldKept) {
@@ -254,6 +275,9 @@ TEST(SubmapBuilder, ConfigValidation) {
   EXPECT_FALSE(config.Validate().ok());
   config = SubmapBuilderConfig();
   config.break_on_jump_m = -0.1;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SubmapBuilderConfig();
+  config.dynamic_filter.check_threads = 0;
   EXPECT_FALSE(config.Validate().ok());
   EXPECT_FALSE(SubmapBuilder::Create(SubmapBuilderConfig(), "").ok());
 }

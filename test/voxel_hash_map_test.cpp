@@ -137,6 +137,70 @@ TEST(VoxelHashMapTest, RepeatedSearchesAcrossRemovalsMatchBruteForce) {
   }
 }
 
+TEST(VoxelHashMapTest, RecalledMatchesAreTheSearchedOnes) {
+  // What an ICP does: the same queries, moved a little at each iteration, searched again and
+  // again in an unchanged map. Most matches are then recalled without a search; every one must
+  // be exactly what FindMatch (which never recalls) gives, also for queries that move by more
+  // than the recall allows, move into another voxel, or out of reach, and after the map changed.
+  VoxelHashMapConfig config;
+  config.min_point_spacing_m = 0.0;
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> u(-15.0, 15.0);
+  std::normal_distribution<double> thin(0.0, 0.01);
+  // Surfaces, as scans see them: a ground plane and walls every 3 m (thin voxel boxes, so
+  // the search skips most neighbour voxels on their boxes), and scattered points.
+  PointVector pts;
+  for (int i = 0; i < 12000; ++i) pts.emplace_back(u(rng), u(rng), thin(rng));
+  for (int i = 0; i < 8000; ++i) {
+    pts.emplace_back(3.0 * std::round(u(rng) / 3.0) + thin(rng), u(rng), 0.1 * (u(rng) + 15.0));
+  }
+  for (int i = 0; i < 2000; ++i) pts.emplace_back(u(rng), u(rng), 0.1 * (u(rng) + 15.0));
+  PointVector start;
+  for (int i = 0; i < 3000; ++i) {
+    start.emplace_back(u(rng), u(rng), i % 2 == 0 ? 0.1 * u(rng) : 0.1 * (u(rng) + 15.0));
+  }
+  for (const int threads : {1, 2}) {
+    WorkerPool pool(threads);
+    VoxelHashMap map = VoxelHashMap::Create(config).value();
+    map.SetNormalsEnabled(false);
+    map.AddPoints(pts);
+    PointVector queries = start;
+    std::vector<std::uint8_t> found;
+    std::vector<TargetMatch> matches;
+    std::uint64_t searched = 0;
+    for (int iteration = 0; iteration < 12; ++iteration) {
+      // Millimetre steps, every fifth iteration 5 cm, every 7th query 0.3 m.
+      const double sigma = iteration % 5 == 4 ? 0.05 : 0.002;
+      std::normal_distribution<double> step(0.0, sigma);
+      for (std::size_t i = 0; i < queries.size(); ++i) {
+        const double scale = i % 7 == 0 ? 0.3 / sigma : 1.0;
+        queries[i] += scale * Eigen::Vector3d(step(rng), step(rng), step(rng));
+      }
+      if (iteration == 8) {  // a change of the map: nothing may be recalled from before it
+        PointVector more;
+        for (int i = 0; i < 2000; ++i) more.emplace_back(u(rng), u(rng), u(rng) * 0.2);
+        map.AddPoints(more);
+      }
+      const std::uint64_t recalled_before = map.recalled_matches();
+      map.FindMatches(queries, 0.6, iteration > 0, &pool, &found, &matches);
+      if (iteration == 0 || iteration == 8) {
+        EXPECT_EQ(map.recalled_matches(), recalled_before) << "iteration " << iteration;
+      }
+      searched += queries.size();
+      for (std::size_t i = 0; i < queries.size(); ++i) {
+        TargetMatch expected;
+        const bool ok = map.FindMatch(queries[i], 0.6, &expected);
+        ASSERT_EQ(found[i] != 0, ok) << threads << " threads, iteration " << iteration;
+        if (!ok) continue;
+        ASSERT_EQ(matches[i].point, expected.point) << threads << " threads";
+        ASSERT_EQ(matches[i].distance_sq, expected.distance_sq) << threads << " threads";
+      }
+    }
+    // Many of the millimetre steps are recalled (a third here: dense surfaces).
+    EXPECT_GT(map.recalled_matches(), searched / 4) << threads << " threads";
+  }
+}
+
 TEST(VoxelHashMapTest, WarmStartedFindMatchesGivesTheColdMatches) {
   // What an ICP does: search, move the queries a little, search again bounded by the previous
   // matches. The bound must not change a single match, on the parallel and the sequential

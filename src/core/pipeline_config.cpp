@@ -79,6 +79,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "grow_max_scan_gap", &d.grow_max_scan_gap},
       {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
       {"in_session_dynamics", "angular_uncertainty_rad", &d.range_image.angular_uncertainty_rad},
+      {"in_session_dynamics", "check_threads", &d.check_threads},
       {"intra_loops", "enabled", &s.intra_loops.enabled},
       {"intra_loops", "search_radius_m", &s.intra_loops.search_radius_m},
       {"intra_loops", "min_id_gap", &s.intra_loops.min_id_gap},

@@ -1,5 +1,6 @@
 #include "multisession_mapper/core/submap_builder.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -27,6 +28,7 @@ Status InSessionDynamicFilterConfig::Validate() const {
     return Status::Error("dynamic_filter.min_consecutive_seen_through must be >= 0");
   }
   if (!(tail_m >= 0.0)) return Status::Error("dynamic_filter.tail_m must be >= 0");
+  if (check_threads < 1) return Status::Error("dynamic_filter.check_threads must be >= 1");
   return Status::Ok();
 }
 
@@ -55,6 +57,21 @@ StatusOr<SubmapBuilder> SubmapBuilder::Create(const SubmapBuilderConfig& config,
   return SubmapBuilder(config, session);
 }
 
+SubmapBuilder::SubmapBuilder(const SubmapBuilderConfig& config, const std::string& session)
+    : session_(session) {
+  set_config(config);
+}
+
+void SubmapBuilder::set_config(const SubmapBuilderConfig& config) {
+  const int threads = config.dynamic_filter.check_threads;
+  if (threads <= 1) {
+    pool_.reset();
+  } else if (pool_ == nullptr || pool_->threads() != threads) {
+    pool_ = std::make_shared<WorkerPool>(threads);
+  }
+  config_ = config;
+}
+
 void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_jump_m) {
   if (!open_.empty()) open_.back().full = true;
   OpenSubmap open;
@@ -65,13 +82,37 @@ void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_ju
   open_.push_back(std::move(open));
 }
 
+void SubmapBuilder::CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odom_sensor) {
+  // Blocks of voxels, one work item each (the pool hands them out one at a time).
+  constexpr std::size_t kBlock = 8192;
+  struct Block {
+    OpenSubmap* open;
+    std::size_t begin, end;
+  };
+  std::vector<Block> blocks;
+  for (OpenSubmap& open : open_) {
+    for (std::size_t begin = 0; begin < open.voxels.size(); begin += kBlock) {
+      blocks.push_back({&open, begin, std::min(open.voxels.size(), begin + kBlock)});
+    }
+  }
+  const auto check = [&](std::size_t b) {
+    CheckVisibility(image, T_odom_sensor, blocks[b].open, blocks[b].begin, blocks[b].end);
+  };
+  if (pool_ == nullptr) {
+    for (std::size_t b = 0; b < blocks.size(); ++b) check(b);
+  } else {
+    pool_->Run(blocks.size(), check);
+  }
+}
+
 void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor,
-                                    OpenSubmap* open) {
+                                    OpenSubmap* open, std::size_t begin, std::size_t end) {
   const InSessionDynamicFilterConfig& c = config_.dynamic_filter;
   const Pose3 T_sensor_submap = T_odom_sensor.inverse() * open->submap.T_map_submap;
   const Eigen::Vector3d sensor_in_submap = T_sensor_submap.inverse().translation();
   const double max_range_sq = c.max_check_range_m * c.max_check_range_m;
-  for (VoxelPoint& voxel : open->voxels) {
+  for (std::size_t i = begin; i < end; ++i) {
+    VoxelPoint& voxel = open->voxels[i];
     const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
     if ((p_submap - sensor_in_submap).squaredNorm() > max_range_sq) continue;
     const Eigen::Vector3d p_sensor = T_sensor_submap * p_submap;
@@ -129,7 +170,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   if (config_.dynamic_filter.enabled &&
       stats_.scans % static_cast<std::uint64_t>(config_.dynamic_filter.check_every_n_scans) == 0) {
     const RangeImage image(deskewed_scan, config_.dynamic_filter.range_image);
-    for (OpenSubmap& open : open_) CheckVisibility(image, T_odom_sensor, &open);
+    CheckOpenSubmaps(image, T_odom_sensor);
   }
 
   // Accumulate.

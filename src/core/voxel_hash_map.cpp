@@ -115,7 +115,8 @@ std::uint32_t VoxelHashMap::QueryNeighbourOffset(std::size_t i, const VoxelIndex
 
 bool VoxelHashMap::SearchOrRecall(std::size_t i, const Eigen::Vector3d& query,
                                   const VoxelIndex& center, const std::int32_t* ids,
-                                  double bound_sq, bool recall, TargetMatch* match) const {
+                                  double bound_sq, bool recall, TargetMatch* match,
+                                  bool* recalled) const {
   QueryMemory& memory = memory_[i];
   if (recall && memory.has_match) {
     // Every other point is at least clear - moved from the query now, the remembered one at
@@ -124,6 +125,7 @@ bool VoxelHashMap::SearchOrRecall(std::size_t i, const Eigen::Vector3d& query,
     const double moved = (query - memory.query).norm();
     const double distance_sq = SquaredDistance(memory.match, query);
     if (std::sqrt(distance_sq) + moved + 1e-9 < std::sqrt(memory.clear_sq)) {
+      *recalled = true;
       if (!(distance_sq < bound_sq)) return false;  // as MatchAround: only below the bound
       match->point = memory.match;
       match->distance_sq = distance_sq;
@@ -312,10 +314,12 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
       const VoxelIndex center = IndexOf(queries[i]);
       const double bound = bound_sq(i);
       const std::uint32_t offset = QueryNeighbourOffset(i, center);  // may grow the ids: first
+      bool recalled = false;
       (*found)[i] = SearchOrRecall(i, queries[i], center, neighbour_ids_.data() + offset, bound,
-                                   recall, &(*matches)[i])
+                                   recall, &(*matches)[i], &recalled)
                         ? 1
                         : 0;
+      recalled_ += recalled ? 1 : 0;
     }
     return;
   }
@@ -332,16 +336,21 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
   found->assign(n, 0);
   matches->resize(n);
   const std::int32_t* ids = neighbour_ids_.data();
-  pool->Run((n + kBlock - 1) / kBlock, [&](std::size_t block) {
+  const std::size_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<std::uint32_t> block_recalls(blocks, 0);  // one writer each
+  pool->Run(blocks, [&](std::size_t block) {
     const std::size_t end = std::min(n, (block + 1) * kBlock);
     for (std::size_t i = block * kBlock; i < end; ++i) {
+      bool recalled = false;
       (*found)[i] =
           SearchOrRecall(i, queries[i], centers[i], ids + offsets[i], bounds[i], recall,
-                         &(*matches)[i])
+                         &(*matches)[i], &recalled)
               ? 1
               : 0;
+      block_recalls[block] += recalled ? 1 : 0;
     }
   });
+  for (const std::uint32_t count : block_recalls) recalled_ += count;
 }
 
 bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& center,

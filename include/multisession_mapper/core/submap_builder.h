@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,7 @@
 #include "multisession_mapper/core/types.h"
 #include "multisession_mapper/core/voxel_index_table.h"
 #include "multisession_mapper/core/voxel_key.h"
+#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -58,6 +60,10 @@ struct InSessionDynamicFilterConfig {
   /// stay. Up to `grow_depth` voxels deep (0 disables) [voxels, scans].
   int grow_depth = 2;
   int grow_max_scan_gap = 4;
+  /// Threads of each visibility check, the calling one included (same result with 1: each
+  /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
+  /// runs partly on the core the odometry leaves idle while it waits for scans.
+  int check_threads = 2;
 
   Status Validate() const;
 };
@@ -115,7 +121,8 @@ class SubmapBuilder {
   /// Id of the submap the last scan went into.
   std::uint32_t current_submap_id() const { return next_id_ == 0 ? 0 : next_id_ - 1; }
   const SubmapBuilderStats& stats() const { return stats_; }
-  void set_config(const SubmapBuilderConfig& config) { config_ = config; }
+  /// New settings (e.g. from dynamic_reconfigure); the check's threads follow check_threads.
+  void set_config(const SubmapBuilderConfig& config);
   const SubmapBuilderConfig& config() const { return config_; }
 
  private:
@@ -138,10 +145,13 @@ class SubmapBuilder {
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
 
-  SubmapBuilder(const SubmapBuilderConfig& config, const std::string& session)
-      : config_(config), session_(session) {}
+  SubmapBuilder(const SubmapBuilderConfig& config, const std::string& session);
   void StartSubmap(const Pose3& T_odom_sensor, double started_at_jump_m = 0.0);
-  void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open);
+  /// The visibility check of every open submap's voxels against one scan, on pool_.
+  void CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odom_sensor);
+  /// The check of voxels [begin, end) of `open` (touches only those voxels).
+  void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open,
+                       std::size_t begin, std::size_t end);
   void Finalize(OpenSubmap* open);
 
   SubmapBuilderConfig config_;
@@ -152,6 +162,8 @@ class SubmapBuilder {
   bool has_last_pose_ = false;
   Pose3 last_pose_ = Pose3::Identity();
   SubmapBuilderStats stats_;
+  /// The visibility check's threads (null with check_threads 1); copies share it.
+  std::shared_ptr<WorkerPool> pool_;
 };
 
 }  // namespace core

@@ -76,6 +76,9 @@ class VoxelHashMap : public RegistrationTarget {
   /// ICP takes its normals from the source scan (the normals are most of a match's cost).
   void SetNormalsEnabled(bool enabled) { normals_enabled_ = enabled; }
   bool empty() const override { return voxels_.empty(); }
+  /// Matches FindMatches recalled without a search since the map was created (see
+  /// QueryMemory), for tests and profiling.
+  std::uint64_t recalled_matches() const { return recalled_; }
 
   /// Every point of the map (map frame), e.g. for visualisation.
   PointVector Points() const;
@@ -133,7 +136,7 @@ class VoxelHashMap : public RegistrationTarget {
   /// searches with MatchAround and remembers what it found.
   bool SearchOrRecall(std::size_t i, const Eigen::Vector3d& query, const VoxelIndex& center,
                       const std::int32_t* ids, double bound_sq, bool recall,
-                      TargetMatch* match) const;
+                      TargetMatch* match, bool* recalled) const;
   /// FindMatch's search among the voxels `ids` around `center`, the voxel of `query`, for the
   /// nearest point closer than sqrt(bound_sq). Reads only, unless normals are enabled (they
   /// are computed and cached on demand).
@@ -183,6 +186,7 @@ class VoxelHashMap : public RegistrationTarget {
   mutable std::uint64_t memory_version_ = 0;
   /// Changes whenever a point is added or removed.
   std::uint64_t content_version_ = 1;
+  mutable std::uint64_t recalled_ = 0;  ///< see recalled_matches()
   Eigen::Vector3d last_removal_position_m_ = Eigen::Vector3d::Zero();
   // Voxel index -> id in voxels_ (open addressing: ~3x faster lookups than
   // std::unordered_map here, which dominate the ICP's run time).
