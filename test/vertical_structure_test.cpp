@@ -105,6 +105,31 @@ TEST(VerticalStructureTest, CourtyardGivesTheTrueVerticalDespiteASlopedGround) {
   EXPECT_GT(cost, 0.4 * std::pow(kDeg / config.sigma_rad, 2));
 }
 
+TEST(VerticalStructureTest, ThreadsChangeNothing) {
+  // The normals are estimated in blocks on the threads and gathered in point order: the
+  // evidence must be the same to the bit with 1, 2 and 3 threads.
+  std::mt19937 rng(4);
+  PointVector world;
+  AddWall(-12, -10, 12, -10, &rng, &world);
+  AddWall(12, -10, 12, 10, &rng, &world);
+  AddWall(12, 10, -12, 10, &rng, &world);
+  AddSlopedGround(&rng, &world);
+  VerticalStructureConfig config;
+  config.threads = 1;
+  const VerticalEvidence one = EstimateVerticalEvidence(world, config);
+  ASSERT_TRUE(one.valid);
+  ASSERT_GT(one.wall_points, 1024) << "several blocks of points";
+  for (const int threads : {2, 3}) {
+    config.threads = threads;
+    const VerticalEvidence more = EstimateVerticalEvidence(world, config);
+    EXPECT_EQ(more.wall_points, one.wall_points) << threads << " threads";
+    EXPECT_EQ(more.up, one.up) << threads << " threads";
+    EXPECT_EQ(more.information, one.information) << threads << " threads";
+  }
+  config.threads = 0;
+  EXPECT_FALSE(config.Validate().ok());
+}
+
 TEST(VerticalStructureTest, ParallelWallsConstrainOnlyTheTiltAboutTheirNormal) {
   std::mt19937 rng(2);
   PointVector world;

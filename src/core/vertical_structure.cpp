@@ -1,6 +1,8 @@
 #include "multisession_mapper/core/vertical_structure.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -8,6 +10,7 @@
 
 #include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/voxel_downsample.h"
+#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -65,6 +68,10 @@ Status VerticalStructureConfig::Validate() const {
     return Status::Error("vertical_structure.min_wall_points must be >= 3, got " +
                          std::to_string(min_wall_points));
   }
+  if (threads < 1) {
+    return Status::Error("vertical_structure.threads must be >= 1, got " +
+                         std::to_string(threads));
+  }
   if (!std::isfinite(sigma_rad) || sigma_rad <= 0.0) {
     return Status::Error("vertical_structure.sigma_rad must be > 0, got " +
                          std::to_string(sigma_rad));
@@ -84,18 +91,35 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
   if (!index.ok()) return evidence;  // a non-finite point: no evidence rather than a bad one
   const PointVector& thinned = index.value().points();
 
-  // Normals of planar patches that are roughly vertical in the submap frame.
+  // Normals of planar patches that are roughly vertical in the submap frame, computed in
+  // blocks on the threads and gathered in point order (the scatter sums below depend on it).
   const double candidate_cos = std::sin(config.max_wall_tilt_rad);
+  PointVector normals(thinned.size());
+  std::vector<std::uint8_t> is_wall(thinned.size(), 0);
+  constexpr std::size_t kBlock = 512;
+  const auto estimate_block = [&](std::size_t block) {
+    std::vector<std::uint32_t> neighbours;
+    const std::size_t end = std::min(thinned.size(), (block + 1) * kBlock);
+    for (std::size_t k = block * kBlock; k < end; ++k) {
+      const Eigen::Vector3d& p = thinned[k];
+      index.value().Nearest(p, static_cast<std::size_t>(config.neighbours),
+                            config.max_neighbour_distance_m, &neighbours);
+      CovarianceAccumulator accumulator;
+      for (std::uint32_t i : neighbours) accumulator.Add(thinned[i] - p);  // centred: precise
+      if (!accumulator.Normal(config.plane, &normals[k])) continue;
+      is_wall[k] = std::abs(normals[k].z()) <= candidate_cos ? 1 : 0;
+    }
+  };
+  const std::size_t blocks = (thinned.size() + kBlock - 1) / kBlock;
+  if (config.threads > 1 && blocks > 1) {
+    WorkerPool pool(config.threads);  // a thread start per submap: negligible
+    pool.Run(blocks, estimate_block);
+  } else {
+    for (std::size_t b = 0; b < blocks; ++b) estimate_block(b);
+  }
   PointVector walls;
-  std::vector<std::uint32_t> neighbours;
-  for (const Eigen::Vector3d& p : thinned) {
-    index.value().Nearest(p, static_cast<std::size_t>(config.neighbours),
-                          config.max_neighbour_distance_m, &neighbours);
-    CovarianceAccumulator accumulator;
-    for (std::uint32_t i : neighbours) accumulator.Add(thinned[i] - p);  // centred: precise
-    Eigen::Vector3d normal;
-    if (!accumulator.Normal(config.plane, &normal)) continue;
-    if (std::abs(normal.z()) <= candidate_cos) walls.push_back(normal);
+  for (std::size_t k = 0; k < thinned.size(); ++k) {
+    if (is_wall[k] != 0) walls.push_back(normals[k]);
   }
   if (static_cast<int>(walls.size()) < config.min_wall_points) return evidence;
 
