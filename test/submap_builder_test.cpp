@@ -81,12 +81,15 @@ struct Result {
   int static_points = 0;
   PointVector points;  ///< every submap point, map frame, in submap and storage order
   std::uint64_t dropped = 0;
+  std::size_t submaps = 0;
 };
 
 // Robot creeps along x while the car crosses its view at 4 m/s, then turns off the road (out
 // of view) for the last 4 s.
-Result RunCrossingCar(bool filter_enabled, int grow_depth = 2, int check_threads = 2) {
+Result RunCrossingCar(bool filter_enabled, int grow_depth = 2, int check_threads = 2,
+                      double max_translation_m = 20.0) {
   SubmapBuilderConfig config;
+  config.max_translation_m = max_translation_m;
   config.dynamic_filter.enabled = filter_enabled;
   config.dynamic_filter.grow_depth = grow_depth;
   config.dynamic_filter.check_threads = check_threads;
@@ -110,17 +113,20 @@ Result RunCrossingCar(bool filter_enabled, int grow_depth = 2, int check_threads
     }
   }
   result.dropped = builder.value().stats().voxels_dropped_dynamic;
+  result.submaps = builder.value().stats().submaps_finished;
   return result;
 }
 
 TEST(SubmapBuilder, CheckThreadsChangeNothing) {
-  // The visibility check's voxels are split over the threads; each voxel's evidence is its
-  // own, so the submaps must be the same point for point with 1, 2 and 3 threads.
-  const Result one = RunCrossingCar(true, 2, 1);
+  // The visibility check's voxels are split over the threads in blocks; each voxel's evidence
+  // is its own, so the submaps must be the same point for point with 1 thread (one plain loop
+  // per open submap), 2 and 3. Submaps of 1 m, so that several are open at every check.
+  const Result one = RunCrossingCar(true, 2, 1, 1.0);
   ASSERT_GT(one.dropped, 100u) << "the check must have dropped the car";
   ASSERT_GT(one.points.size(), 20000u) << "several blocks of voxels per check";
+  ASSERT_GE(one.submaps, 3u) << "several open submaps per check";
   for (const int threads : {2, 3}) {
-    const Result more = RunCrossingCar(true, 2, threads);
+    const Result more = RunCrossingCar(true, 2, threads, 1.0);
     EXPECT_EQ(more.dropped, one.dropped) << threads << " threads";
     ASSERT_EQ(more.points.size(), one.points.size()) << threads << " threads";
     for (std::size_t i = 0; i < one.points.size(); ++i) {

@@ -97,6 +97,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"pose_graph", "odometry_sigma_rotation_rad", &s.odometry_sigma_rotation_rad},
       {"pose_graph", "vertical_priors", &s.vertical_structure.enabled},
       {"pose_graph", "vertical_sigma_rad", &s.vertical_structure.sigma_rad},
+      {"pose_graph", "vertical_threads", &s.vertical_structure.threads},
       {"frame_anchor", "enabled", &s.frame_anchor.enabled},
       {"frame_anchor", "scans", &s.frame_anchor.scans},
       {"frame_anchor", "reference_radius_m", &s.frame_anchor.reference_radius_m},

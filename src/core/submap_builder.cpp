@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -28,7 +29,9 @@ Status InSessionDynamicFilterConfig::Validate() const {
     return Status::Error("dynamic_filter.min_consecutive_seen_through must be >= 0");
   }
   if (!(tail_m >= 0.0)) return Status::Error("dynamic_filter.tail_m must be >= 0");
-  if (check_threads < 1) return Status::Error("dynamic_filter.check_threads must be >= 1");
+  if (check_threads < 1 || check_threads > 64) {
+    return Status::Error("dynamic_filter.check_threads must be in [1, 64]");
+  }
   return Status::Ok();
 }
 
@@ -83,6 +86,12 @@ void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_ju
 }
 
 void SubmapBuilder::CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odom_sensor) {
+  if (pool_ == nullptr) {
+    for (OpenSubmap& open : open_) {
+      CheckVisibility(image, T_odom_sensor, &open, 0, open.voxels.size());
+    }
+    return;
+  }
   // Blocks of voxels, one work item each (the pool hands them out one at a time).
   constexpr std::size_t kBlock = 8192;
   struct Block {
@@ -98,11 +107,7 @@ void SubmapBuilder::CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odo
   const auto check = [&](std::size_t b) {
     CheckVisibility(image, T_odom_sensor, blocks[b].open, blocks[b].begin, blocks[b].end);
   };
-  if (pool_ == nullptr) {
-    for (std::size_t b = 0; b < blocks.size(); ++b) check(b);
-  } else {
-    pool_->Run(blocks.size(), check);
-  }
+  pool_->Run(blocks.size(), check);
 }
 
 void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor,

@@ -68,8 +68,8 @@ Status VerticalStructureConfig::Validate() const {
     return Status::Error("vertical_structure.min_wall_points must be >= 3, got " +
                          std::to_string(min_wall_points));
   }
-  if (threads < 1) {
-    return Status::Error("vertical_structure.threads must be >= 1, got " +
+  if (threads < 1 || threads > 64) {
+    return Status::Error("vertical_structure.threads must be in [1, 64], got " +
                          std::to_string(threads));
   }
   if (!std::isfinite(sigma_rad) || sigma_rad <= 0.0) {
@@ -97,10 +97,9 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
   PointVector normals(thinned.size());
   std::vector<std::uint8_t> is_wall(thinned.size(), 0);
   constexpr std::size_t kBlock = 512;
-  const auto estimate_block = [&](std::size_t block) {
+  const auto estimate = [&](std::size_t begin, std::size_t end) {
     std::vector<std::uint32_t> neighbours;
-    const std::size_t end = std::min(thinned.size(), (block + 1) * kBlock);
-    for (std::size_t k = block * kBlock; k < end; ++k) {
+    for (std::size_t k = begin; k < end; ++k) {
       const Eigen::Vector3d& p = thinned[k];
       index.value().Nearest(p, static_cast<std::size_t>(config.neighbours),
                             config.max_neighbour_distance_m, &neighbours);
@@ -113,9 +112,11 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
   const std::size_t blocks = (thinned.size() + kBlock - 1) / kBlock;
   if (config.threads > 1 && blocks > 1) {
     WorkerPool pool(config.threads);  // a thread start per submap: negligible
-    pool.Run(blocks, estimate_block);
+    pool.Run(blocks, [&](std::size_t block) {
+      estimate(block * kBlock, std::min(thinned.size(), (block + 1) * kBlock));
+    });
   } else {
-    for (std::size_t b = 0; b < blocks; ++b) estimate_block(b);
+    estimate(0, thinned.size());
   }
   PointVector walls;
   for (std::size_t k = 0; k < thinned.size(); ++k) {

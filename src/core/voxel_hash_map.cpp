@@ -120,11 +120,12 @@ bool VoxelHashMap::SearchOrRecall(std::size_t i, const Eigen::Vector3d& query,
   QueryMemory& memory = memory_[i];
   if (recall && memory.has_match) {
     // Every other point is at least clear - moved from the query now, the remembered one at
-    // distance: it is the only nearest while distance < clear - moved (with a margin far
-    // above the rounding of these sums, ~1e-13 m at 1 km).
+    // distance: it is the only nearest while distance < clear - moved. The margin is far
+    // above the rounding of these sums and of the voxel-face tests (~1e-13 m at 1 km).
     const double moved = (query - memory.query).norm();
     const double distance_sq = SquaredDistance(memory.match, query);
-    if (std::sqrt(distance_sq) + moved + 1e-9 < std::sqrt(memory.clear_sq)) {
+    const double margin = 1e-9 + 1e-14 * query.cwiseAbs().maxCoeff();
+    if (std::sqrt(distance_sq) + moved + margin < std::sqrt(memory.clear_sq)) {
       *recalled = true;
       if (!(distance_sq < bound_sq)) return false;  // as MatchAround: only below the bound
       match->point = memory.match;
@@ -207,7 +208,7 @@ void VoxelHashMap::AddPoints(const PointVector& points_in_map) {
   for (const Eigen::Vector3d& p : points_in_map) {
     if (!p.allFinite()) continue;
     const VoxelIndex index = IndexOf(p);
-    if (index != last_index) {
+    if (id < 0 || index != last_index) {
       id = FindOrInsert(index);
       last_index = index;
     }
@@ -324,7 +325,7 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
     return;
   }
   // Within a search the neighbour cache's only writer is this loop; the parallel part below
-  // only reads.
+  // only reads it (each task writes only its own queries' memory, found and matches).
   std::vector<VoxelIndex> centers(n);
   std::vector<std::uint32_t> offsets(n);
   std::vector<double> bounds(n);

@@ -24,10 +24,11 @@
 #include "multisession_mapper/core/types.h"
 #include "multisession_mapper/core/voxel_index_table.h"
 #include "multisession_mapper/core/voxel_key.h"
-#include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
 namespace core {
+
+class WorkerPool;
 
 struct InSessionDynamicFilterConfig {
   bool enabled = true;
@@ -62,7 +63,7 @@ struct InSessionDynamicFilterConfig {
   int grow_max_scan_gap = 4;
   /// Threads of each visibility check, the calling one included (same result with 1: each
   /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
-  /// runs partly on the core the odometry leaves idle while it waits for scans.
+  /// runs partly on the core the odometry leaves idle while it waits for scans. In [1, 64].
   int check_threads = 2;
 
   Status Validate() const;

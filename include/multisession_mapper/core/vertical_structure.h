@@ -60,7 +60,8 @@ struct VerticalStructureConfig {
   double sigma_rad = 0.005;
   /// Threads of the normal estimation, the calling one included (same result with 1). It
   /// runs on the submap thread when a submap is finished (~5 % of the offline runner's CPU,
-  /// session 37 perf), where the odometry's core is often idle.
+  /// session 37 perf), where the odometry's core is often idle. In [1, 64]; YAML
+  /// pose_graph.vertical_threads.
   int threads = 2;
 
   Status Validate() const;

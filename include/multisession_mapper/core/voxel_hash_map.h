@@ -6,7 +6,8 @@
 // filled by one scan), box-distance pruning of neighbour voxels in the search, and cached
 // surface normals from the local covariance for point-to-plane ICP.
 //
-// Not thread-safe: FindMatch() fills the normal and neighbourhood caches (one ICP thread per
+// Not thread-safe: FindMatch() fills the normal and neighbourhood caches, FindMatches() also
+// each query's memory of its last search (one ICP thread per
 // map).
 #pragma once
 
@@ -66,9 +67,12 @@ class VoxelHashMap : public RegistrationTarget {
                  TargetMatch* match) const override;
   /// With normals disabled and a pool of 2+ threads: the neighbourhoods of all queries are
   /// looked up (and cached) on the calling thread, then the nearest points are searched on
-  /// the pool's threads. With `warm_start`, a query whose previous match is still within
-  /// max_distance_m searches only for points closer than that match (most neighbour voxels
-  /// are then skipped by their boxes). Same results as FindMatch per query in both cases.
+  /// the pool's threads. `warm_start` presumes that the previous call had the same queries
+  /// (moved) and that no point was removed since; with it, a query whose previous match is
+  /// still within max_distance_m searches only for points closer than that match (most
+  /// neighbour voxels are then skipped by their boxes). A query searched again in an unchanged map is mostly
+  /// answered from its memory of the last search (see QueryMemory). Same results as FindMatch
+  /// per query in every case.
   void FindMatches(const PointVector& queries, double max_distance_m, bool warm_start,
                    WorkerPool* pool, std::vector<std::uint8_t>* found,
                    std::vector<TargetMatch>* matches) const override;
@@ -76,8 +80,8 @@ class VoxelHashMap : public RegistrationTarget {
   /// ICP takes its normals from the source scan (the normals are most of a match's cost).
   void SetNormalsEnabled(bool enabled) { normals_enabled_ = enabled; }
   bool empty() const override { return voxels_.empty(); }
-  /// Matches FindMatches recalled without a search since the map was created (see
-  /// QueryMemory), for tests and profiling.
+  /// FindMatches answers given from a query's memory without a search since the map was
+  /// created (see QueryMemory; including "none within the bound"), for tests and profiling.
   std::uint64_t recalled_matches() const { return recalled_; }
 
   /// Every point of the map (map frame), e.g. for visualisation.
@@ -167,9 +171,13 @@ class VoxelHashMap : public RegistrationTarget {
   /// What the last search of query i (FindMatches' i-th query) found, for its next search.
   /// An ICP searches the same source points at every iteration and they move by millimetres:
   /// - the neighbour-cache offset is reused while the query stays in its voxel (no look-up);
-  /// - the nearest point is recalled without a search while the map is unchanged and the
-  ///   query moved by less than half the gap between that point and every other point of its
-  ///   neighbourhood (then it is still the only nearest one: the same result as a search).
+  /// - the nearest point is recalled without a search while the map is unchanged and
+  ///   |match - query now| + |query now - query then| < clear: every other point of the
+  ///   neighbourhood is then still farther from the query than the match (roughly: the query
+  ///   moved by less than half the margin by which the match was the nearest), so a search
+  ///   would find it again, with the same distance bits (one SquaredDistance expression; no
+  ///   -march flags, so no FMA contraction differs between the two). The margin of the test
+  ///   grows with the coordinates' size, which bounds the rounding of the voxel-face tests.
   struct QueryMemory {
     Eigen::Vector3d query = Eigen::Vector3d::Zero();  ///< where it was last searched [m]
     Eigen::Vector3d match = Eigen::Vector3d::Zero();  ///< the nearest point found there
