@@ -71,15 +71,21 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::min(1.0, std::abs(a.normalized().dot(b.normalized())))) / kDeg;
 }
 
+// Four facades around a sloped yard with cars parked on the slope.
+PointVector Courtyard(std::mt19937* rng) {
+  PointVector world;
+  AddWall(-12, -10, 12, -10, rng, &world);
+  AddWall(12, -10, 12, 10, rng, &world);
+  AddWall(12, 10, -12, 10, rng, &world);
+  AddWall(-12, 10, -12, -10, rng, &world);
+  AddSlopedGround(rng, &world);
+  AddParkedCarsOnASlope(rng, &world);
+  return world;
+}
+
 TEST(VerticalStructureTest, CourtyardGivesTheTrueVerticalDespiteASlopedGround) {
   std::mt19937 rng(1);
-  PointVector world;
-  AddWall(-12, -10, 12, -10, &rng, &world);
-  AddWall(12, -10, 12, 10, &rng, &world);
-  AddWall(12, 10, -12, 10, &rng, &world);
-  AddWall(-12, 10, -12, -10, &rng, &world);
-  AddSlopedGround(&rng, &world);
-  AddParkedCarsOnASlope(&rng, &world);
+  const PointVector world = Courtyard(&rng);
   // The sensor frame is tilted: the world's up is R * z in it.
   const Eigen::Matrix3d R = se3::FromXyzRpy(0, 0, 0, 1.5 * kDeg, -1.0 * kDeg, 0.4).rotation();
   const VerticalStructureConfig config;
@@ -109,11 +115,7 @@ TEST(VerticalStructureTest, ThreadsChangeNothing) {
   // The normals are estimated in blocks on the threads and gathered in point order: the
   // evidence must be the same to the bit with 1, 2 and 3 threads.
   std::mt19937 rng(4);
-  PointVector world;
-  AddWall(-12, -10, 12, -10, &rng, &world);
-  AddWall(12, -10, 12, 10, &rng, &world);
-  AddWall(12, 10, -12, 10, &rng, &world);
-  AddSlopedGround(&rng, &world);
+  const PointVector world = Courtyard(&rng);
   VerticalStructureConfig config;
   config.threads = 1;
   const VerticalEvidence one = EstimateVerticalEvidence(world, config);

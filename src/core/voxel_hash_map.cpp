@@ -308,38 +308,22 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
   // match with normals is computed by MatchAround only).
   const bool recall = memory_version_ == content_version_ && !normals_enabled_;
   memory_version_ = content_version_;
-  if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries) {
-    if (!hints) found->assign(n, 0);
-    matches->resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const VoxelIndex center = IndexOf(queries[i]);
-      const double bound = bound_sq(i);
-      const std::uint32_t offset = QueryNeighbourOffset(i, center);  // may grow the ids: first
-      bool recalled = false;
-      (*found)[i] = SearchOrRecall(i, queries[i], center, neighbour_ids_.data() + offset, bound,
-                                   recall, &(*matches)[i], &recalled)
-                        ? 1
-                        : 0;
-      recalled_ += recalled ? 1 : 0;
-    }
-    return;
-  }
-  // Within a search the neighbour cache's only writer is this loop; the parallel part below
-  // only reads it (each task writes only its own queries' memory, found and matches).
+  // The neighbour cache's only writer is this loop (it may grow neighbour_ids_); the search
+  // below only reads it, each task writing only its own queries' memory, found and matches.
   std::vector<VoxelIndex> centers(n);
   std::vector<std::uint32_t> offsets(n);
   std::vector<double> bounds(n);
   for (std::size_t i = 0; i < n; ++i) {
     centers[i] = IndexOf(queries[i]);
     offsets[i] = QueryNeighbourOffset(i, centers[i]);
-    bounds[i] = bound_sq(i);
+    bounds[i] = bound_sq(i);  // reads the previous found / matches: before they are reset
   }
   found->assign(n, 0);
   matches->resize(n);
   const std::int32_t* ids = neighbour_ids_.data();
   const std::size_t blocks = (n + kBlock - 1) / kBlock;
   std::vector<std::uint32_t> block_recalls(blocks, 0);  // one writer each
-  pool->Run(blocks, [&](std::size_t block) {
+  const auto search_block = [&](std::size_t block) {
     const std::size_t end = std::min(n, (block + 1) * kBlock);
     for (std::size_t i = block * kBlock; i < end; ++i) {
       bool recalled = false;
@@ -350,7 +334,13 @@ void VoxelHashMap::FindMatches(const PointVector& queries, double max_distance_m
               : 0;
       block_recalls[block] += recalled ? 1 : 0;
     }
-  });
+  };
+  // Normals are computed and cached by the search itself: those searches stay on this thread.
+  if (pool == nullptr || pool->threads() <= 1 || normals_enabled_ || n < kMinParallelQueries) {
+    for (std::size_t block = 0; block < blocks; ++block) search_block(block);
+  } else {
+    pool->Run(blocks, search_block);
+  }
   for (const std::uint32_t count : block_recalls) recalled_ += count;
 }
 
