@@ -42,6 +42,29 @@ TEST(WorkerPoolTest, HelpersShareTheWork) {
   EXPECT_GT(by_caller.load(), 0);
 }
 
+// A pool made for one Run (the wall normals make one per submap) must share that very
+// first Run: its helpers start while the Run is already handing out items. Each pool's two
+// items wait (up to 2 s) for each other, which only two threads running at once can see.
+TEST(WorkerPoolTest, HelpersJoinTheRunRightAfterTheConstructor) {
+  int runs_in_parallel = 0;
+  constexpr int kPools = 10;
+  for (int p = 0; p < kPools; ++p) {
+    WorkerPool pool(2);
+    std::atomic<int> started{0};
+    std::atomic<int> saw_partner{0};  // items that saw the other one start while waiting
+    pool.Run(2, [&](std::size_t) {
+      ++started;
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+      while (started.load() < 2 && std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::yield();
+      }
+      if (started.load() == 2) ++saw_partner;
+    });
+    if (saw_partner.load() == 2) ++runs_in_parallel;
+  }
+  EXPECT_EQ(runs_in_parallel, kPools);
+}
+
 TEST(WorkerPoolTest, OneThreadRunsOnTheCaller) {
   WorkerPool pool(1);
   EXPECT_EQ(pool.threads(), 1);

@@ -30,7 +30,11 @@ WorkerPool::~WorkerPool() {
 
 void WorkerPool::HelperLoop() {
   std::unique_lock<std::mutex> lock(mutex_);
-  std::uint64_t seen = generation_;
+  // Generation 0 is the constructor's, not what generation_ holds when this thread gets to
+  // run: a Run right after the constructor often bumps it first, and a helper that took
+  // that as seen slept through the Run (a pool made for one Run, as the wall normals' per
+  // submap, then ran it on the caller alone).
+  std::uint64_t seen = 0;
   while (true) {
     work_cv_.wait(lock, [&] { return stop_ || generation_ != seen; });
     if (stop_) return;
