@@ -3,11 +3,15 @@
 #include <cmath>
 #include <iostream>
 #include <limits>
+#include <map>
 #include <random>
+#include <tuple>
+#include <vector>
 
 #include <gtest/gtest.h>
 
 #include "multisession_mapper/core/se3.h"
+#include "multisession_mapper/core/voxel_key.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -186,6 +190,63 @@ TEST(SubmapBuilder, ParkedCarIsKept) {
   EXPECT_EQ(builder.value().stats().voxels_dropped_dynamic < 0.01 * builder.value().stats().voxels_kept, true)
       << builder.value().stats().voxels_dropped_dynamic << " dropped of "
       << builder.value().stats().voxels_kept;
+}
+
+// The submap's points are the centroids of its voxels, in the order the voxels were first
+// hit, every in-range point summed in scan order: a plain reference against the builder's
+// prefetching look-ups (runs of one voxel, voxels revisited out of order, scans of 0 to
+// 40 points around the look-up's lag, points out of range and not finite).
+TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrder) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.enabled = false;
+  config.voxel_size_m = 0.5;
+  config.max_point_range_m = 9.0;
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+  ASSERT_TRUE(builder.ok());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> coordinate(-6.0f, 6.0f);
+  std::uniform_int_distribution<int> run(1, 4);
+  std::vector<VoxelKey> first_hit;
+  std::map<std::tuple<int, int, int>, std::pair<Eigen::Vector3d, int>> sums;
+  const Pose3 T_odom_sensor = se3::FromXyzRpy(0.3, -0.2, 0.1, 0.0, 0.0, 0.4);
+  for (int k = 0; k < 60; ++k) {
+    LidarScan scan;
+    scan.stamp_s = k;
+    const int n = k % 41;  // 0 .. 40 points
+    while (static_cast<int>(scan.points.size()) < n) {
+      LidarPoint p;
+      p.position_m = Eigen::Vector3f(coordinate(rng), coordinate(rng), coordinate(rng) / 3.0f);
+      for (int r = run(rng); r > 0 && static_cast<int>(scan.points.size()) < n; --r) {
+        scan.points.push_back(p);  // a run of points in one voxel
+        p.position_m.x() += 0.01f;
+      }
+    }
+    if (n > 3) scan.points[1].position_m.y() = std::numeric_limits<float>::quiet_NaN();
+    if (n > 5) scan.points[4].position_m = Eigen::Vector3f(9.5f, 0.0f, 0.0f);  // out of range
+    builder.value().AddScan(scan, T_odom_sensor);
+    for (const LidarPoint& p : scan.points) {
+      const Eigen::Vector3d q = p.position_m.cast<double>();
+      if (!q.allFinite() || q.norm() > config.max_point_range_m) continue;
+      const Eigen::Vector3d& in_submap = q;  // every scan at the submap's origin pose
+      const VoxelKey key = ToVoxelKey(in_submap, config.voxel_size_m);
+      auto& sum = sums[{key.x(), key.y(), key.z()}];
+      if (sum.second == 0) {
+        first_hit.push_back(key);
+        sum.first.setZero();
+      }
+      sum.first += in_submap;
+      ++sum.second;
+    }
+  }
+  builder.value().FinishSession();
+  const auto submaps = builder.value().TakeFinished();
+  ASSERT_EQ(submaps.size(), 1u);
+  ASSERT_EQ(submaps[0].points.size(), first_hit.size());
+  for (std::size_t i = 0; i < first_hit.size(); ++i) {
+    const auto& sum = sums[{first_hit[i].x(), first_hit[i].y(), first_hit[i].z()}];
+    const Eigen::Vector3d expected = sum.first / sum.second;
+    ASSERT_EQ(submaps[0].points[i], expected) << "voxel " << i;
+  }
 }
 
 TEST(SubmapBuilder, SplitsOnTranslationAndRotationThresholds) {

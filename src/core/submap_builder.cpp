@@ -184,23 +184,48 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   record.T_submap_sensor = se3::Between(current.submap.T_map_submap, T_odom_sensor);
   current.submap.scans.push_back(record);
   const double max_range_sq = config_.max_point_range_m * config_.max_point_range_m;
-  // Successive points of a ring often share a voxel: look the key up only when it changes.
-  VoxelKey last_key(std::numeric_limits<int>::min(), 0, 0);
-  std::uint32_t last_index = 0;
+  // First every point's submap position, voxel key and hash; then the look-ups in the same
+  // order, a few points ahead of the sums, with memory prefetched ahead of both: the voxel
+  // table and voxels of a large submap are tens of MB, and each look-up otherwise waited for
+  // memory (on the whole `campus` s00 bag the look-ups and sums took 6.6-7.5 s per 4000 scans
+  // in one loop, 3.4-3.6 s now). Successive points of a ring often share a voxel: the key is
+  // looked up only when it changes. Same voxels, same order, same sums as one loop.
+  pending_.clear();
   for (const LidarPoint& p : deskewed_scan.points) {
     const Eigen::Vector3d p_sensor = p.position_m.cast<double>();
     if (!p_sensor.allFinite() || p_sensor.squaredNorm() > max_range_sq) continue;
-    const Eigen::Vector3d p_submap = record.T_submap_sensor * p_sensor;
-    const VoxelKey key = ToVoxelKey(p_submap, config_.voxel_size_m);
-    if (key != last_key) {
-      const auto found =
-          current.voxel_index.FindOrInsert(key, static_cast<std::uint32_t>(current.voxels.size()));
-      if (found.second) current.voxels.emplace_back();
-      last_key = key;
-      last_index = found.first;
+    PendingPoint q;
+    q.p_submap = record.T_submap_sensor * p_sensor;
+    q.key = ToVoxelKey(q.p_submap, config_.voxel_size_m);
+    q.hash = VoxelIndexTable::Hash(q.key);
+    pending_.push_back(q);
+  }
+  // Two stages in step: the look-up of point i + kVoxelLag (it prefetches the table slot of
+  // the point kSlotLag further on, and the voxel it finds), and the sum of point i.
+  constexpr std::size_t kSlotLag = 8;
+  constexpr std::size_t kVoxelLag = 4;
+  VoxelKey last_key(std::numeric_limits<int>::min(), 0, 0);
+  std::uint32_t last_index = 0;
+  std::size_t looked_up = 0;
+  const std::size_t n = pending_.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    for (; looked_up < n && looked_up <= i + kVoxelLag; ++looked_up) {
+      if (looked_up + kSlotLag < n) {
+        current.voxel_index.Prefetch(pending_[looked_up + kSlotLag].hash);
+      }
+      PendingPoint& q = pending_[looked_up];
+      if (q.key != last_key) {
+        const auto found = current.voxel_index.FindOrInsert(
+            q.key, q.hash, static_cast<std::uint32_t>(current.voxels.size()));
+        if (found.second) current.voxels.emplace_back();
+        last_key = q.key;
+        last_index = found.first;
+        __builtin_prefetch(&current.voxels[last_index]);
+      }
+      q.voxel = last_index;
     }
-    VoxelPoint& voxel = current.voxels[last_index];
-    voxel.sum += p_submap;
+    VoxelPoint& voxel = current.voxels[pending_[i].voxel];
+    voxel.sum += pending_[i].p_submap;
     ++voxel.count;
   }
 

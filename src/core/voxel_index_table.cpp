@@ -3,7 +3,7 @@
 namespace multisession_mapper {
 namespace core {
 
-std::size_t VoxelIndexTable::Mix(const VoxelKey& key) {
+std::size_t VoxelIndexTable::Hash(const VoxelKey& key) {
   // The three coordinates packed into 64 bits (21 bits each, wrapping) and mixed by the
   // splitmix64 finaliser, so that neighbouring voxels spread over the power-of-two table.
   std::uint64_t h = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(key.x())) & 0x1FFFFFu) |
@@ -26,7 +26,7 @@ void VoxelIndexTable::Rehash(std::size_t capacity) {
   mask_ = capacity - 1;
   for (const Slot& s : old) {
     if (s.index == kEmpty) continue;
-    std::size_t i = Mix(VoxelKey(s.x, s.y, s.z)) & mask_;
+    std::size_t i = Hash(VoxelKey(s.x, s.y, s.z)) & mask_;
     while (slots_[i].index != kEmpty) i = (i + 1) & mask_;
     slots_[i] = s;
   }
@@ -39,9 +39,10 @@ void VoxelIndexTable::Reserve(std::size_t count) {
 }
 
 std::pair<std::uint32_t, bool> VoxelIndexTable::FindOrInsert(const VoxelKey& key,
+                                                             std::size_t hash,
                                                              std::uint32_t index_if_new) {
   if (2 * (size_ + 1) > slots_.size()) Reserve(size_ + 1);
-  std::size_t i = Mix(key) & mask_;
+  std::size_t i = hash & mask_;
   while (true) {
     Slot& s = slots_[i];
     if (s.index == kEmpty) {
@@ -56,7 +57,7 @@ std::pair<std::uint32_t, bool> VoxelIndexTable::FindOrInsert(const VoxelKey& key
 
 std::uint32_t VoxelIndexTable::Find(const VoxelKey& key) const {
   if (slots_.empty()) return kEmpty;
-  std::size_t i = Mix(key) & mask_;
+  std::size_t i = Hash(key) & mask_;
   while (true) {
     const Slot& s = slots_[i];
     if (s.index == kEmpty) return kEmpty;

@@ -135,6 +135,13 @@ class SubmapBuilder {
     std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
     std::uint32_t last_consistent_scan = 0;  ///< scan counter of the last consistent check
   };
+  /// A scan point on its way into the current submap (AddScan's look-up buffer).
+  struct PendingPoint {
+    Eigen::Vector3d p_submap;
+    VoxelKey key;
+    std::size_t hash = 0;
+    std::uint32_t voxel = 0;  ///< index in the current submap's voxels, once looked up
+  };
   struct OpenSubmap {
     Submap submap;
     /// Voxels in a flat array (the visibility checks sweep all of them, every check) and
@@ -159,6 +166,7 @@ class SubmapBuilder {
   std::string session_;
   std::deque<OpenSubmap> open_;  ///< oldest first; the last one receives points
   std::vector<Submap, Eigen::aligned_allocator<Submap>> finished_;
+  std::vector<PendingPoint> pending_;  ///< AddScan's buffer, kept to reuse its memory
   std::uint32_t next_id_ = 0;
   bool has_last_pose_ = false;
   Pose3 last_pose_ = Pose3::Identity();

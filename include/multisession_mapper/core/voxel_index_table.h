@@ -26,7 +26,20 @@ class VoxelIndexTable {
   VoxelIndexTable() = default;
 
   /// The index of `key`; when absent, inserts `index_if_new` and returns it. second: inserted.
-  std::pair<std::uint32_t, bool> FindOrInsert(const VoxelKey& key, std::uint32_t index_if_new);
+  std::pair<std::uint32_t, bool> FindOrInsert(const VoxelKey& key, std::uint32_t index_if_new) {
+    return FindOrInsert(key, Hash(key), index_if_new);
+  }
+  /// The same with `hash` == Hash(key) computed by the caller (e.g. once for Prefetch too).
+  std::pair<std::uint32_t, bool> FindOrInsert(const VoxelKey& key, std::size_t hash,
+                                              std::uint32_t index_if_new);
+  /// The hash of a key; its probe starts at slot hash & (capacity - 1).
+  static std::size_t Hash(const VoxelKey& key);
+  /// Asks the CPU to load the slot where the probe for `hash` starts, so that a look-up a few
+  /// keys later does not wait for memory (a hint only: no effect on any result). The submap
+  /// builder's per-point look-ups go to random places of a table of several MB.
+  void Prefetch(std::size_t hash) const {
+    if (!slots_.empty()) __builtin_prefetch(&slots_[hash & mask_]);
+  }
   /// The index of `key`, or kEmpty when absent.
   std::uint32_t Find(const VoxelKey& key) const;
 
@@ -42,7 +55,6 @@ class VoxelIndexTable {
     std::int32_t x, y, z;
     std::uint32_t index;
   };
-  static std::size_t Mix(const VoxelKey& key);
   void Rehash(std::size_t capacity);
 
   std::vector<Slot> slots_;
