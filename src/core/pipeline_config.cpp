@@ -98,6 +98,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"pose_graph", "vertical_priors", &s.vertical_structure.enabled},
       {"pose_graph", "vertical_sigma_rad", &s.vertical_structure.sigma_rad},
       {"pose_graph", "vertical_threads", &s.vertical_structure.threads},
+      {"pose_graph", "vertical_min_height_m", &s.vertical_structure.min_height_m},
+      {"pose_graph", "vertical_min_wall_points", &s.vertical_structure.min_wall_points},
       {"frame_anchor", "enabled", &s.frame_anchor.enabled},
       {"frame_anchor", "scans", &s.frame_anchor.scans},
       {"frame_anchor", "reference_radius_m", &s.frame_anchor.reference_radius_m},

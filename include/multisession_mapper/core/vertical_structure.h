@@ -30,7 +30,7 @@ struct VerticalStructureConfig {
   /// facade is in view); above it are facades, tall walls, posts and trunks. Measured on the
   /// simulator's true points around the `campus` s00 submap origins: weighted error median
   /// 0.15 deg, p90 1.8 deg with every point; 0.08 / 0.15 deg with this gate at 0.5 m (33 of 58
-  /// submaps keep enough walls).
+  /// submaps keep enough walls). YAML pose_graph.vertical_min_height_m.
   double min_height_m = 0.5;
   /// The submap's points are thinned to this voxel before the normals [m]. Neighbours per
   /// normal, and their largest distance from the point [m]. 0.4 m / 20 would be 2.6x faster
@@ -50,7 +50,7 @@ struct VerticalStructureConfig {
   /// After a first estimate of up, walls whose normal is more than this from horizontal are
   /// dropped and up is estimated again (sloped roofs, car bonnets, curbs on a slope) [rad].
   double inlier_tilt_rad = 0.1;
-  /// Fewer wall normals than this give no evidence.
+  /// Fewer wall normals than this give no evidence. YAML pose_graph.vertical_min_wall_points.
   int min_wall_points = 300;
   /// Standard deviation of the submap's tilt about its best-constrained horizontal axis [rad]
   /// (0.005 rad = 0.29 deg: on the submaps the SLAM builds of `campus` seed 2 s00, the
