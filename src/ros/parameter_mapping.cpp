@@ -55,7 +55,9 @@ namespace ros_params {
   F(pose_graph_odometry_sigma_translation_per_m, s.odometry_sigma_translation_per_m)        \
   F(pose_graph_odometry_sigma_rotation_rad, s.odometry_sigma_rotation_rad)                  \
   F(pose_graph_vertical_priors, s.vertical_structure.enabled)                               \
-  F(pose_graph_vertical_sigma_rad, s.vertical_structure.sigma_rad)
+  F(pose_graph_vertical_sigma_rad, s.vertical_structure.sigma_rad)                         \
+  F(pose_graph_vertical_min_height_m, s.vertical_structure.min_height_m)                   \
+  F(pose_graph_vertical_min_wall_points, s.vertical_structure.min_wall_points)
 
 #define MSM_PLACE_RECOGNITION_FIELDS(F)                                                  \
   F(place_recognition_d_alpha_ring_histogram, p.database.d_alpha_ring_histogram)         \
