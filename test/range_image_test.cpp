@@ -1,7 +1,9 @@
 #include "multisession_mapper/core/range_image.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -140,6 +142,28 @@ TEST(RangeImage, GroundSeenFromATiltedPoseIsNotSeenThrough) {
 TEST(RangeImage, PointAboveTheFieldOfViewIsUnknown) {
   const RangeImage image(GroundAndWall(true), RangeImageConfig());
   EXPECT_EQ(image.Check(OnBeam(5.0, 40.0, 0.0), 0.3), Visibility::kUnknown);
+}
+
+TEST(RangeImage, RingLookupIsTheBinarySearchOverTheRingTangents) {
+  for (bool with_ring : {true, false}) {
+    const RangeImage image(GroundAndWall(with_ring), RangeImageConfig());
+    std::vector<double> tangents;
+    for (const double elevation : image.ring_elevations_rad()) {
+      tangents.push_back(std::tan(elevation));
+    }
+    std::vector<double> queries = {-1e6, -10.0, -1.0, 0.0, 1.0, 10.0, 1e6};
+    for (const double t : tangents) {  // each ring's tangent and its floating-point neighbours
+      queries.push_back(t);
+      queries.push_back(std::nextafter(t, -1e9));
+      queries.push_back(std::nextafter(t, 1e9));
+    }
+    for (int k = 0; k <= 200000; ++k) queries.push_back(-0.4 + 0.8 * k / 200000.0);
+    for (const double q : queries) {
+      const int expected = static_cast<int>(
+          std::lower_bound(tangents.begin(), tangents.end(), q) - tangents.begin());
+      ASSERT_EQ(image.FirstRingAtOrAbove(q), expected) << "tangent " << q;
+    }
+  }
 }
 
 TEST(RangeImage, ConfigValidation) {

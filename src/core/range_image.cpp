@@ -91,6 +91,22 @@ RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config)
     gate_low_tangents_.push_back(TanClamped(elevation - config_.elevation_tolerance_rad));
     gate_high_tangents_.push_back(TanClamped(elevation + config_.elevation_tolerance_rad));
   }
+  if (!ring_tangents_.empty()) {
+    // 2048 entries over the rings' tangents and a margin: a few hundredths of a degree each.
+    constexpr int kEntries = 2048;
+    const double margin = 0.05;
+    lut_low_tangent_ = ring_tangents_.front() - margin;
+    const double step =
+        (ring_tangents_.back() + margin - lut_low_tangent_) / static_cast<double>(kEntries);
+    lut_inv_step_ = 1.0 / step;
+    lut_first_ring_.resize(kEntries);
+    for (int b = 0; b < kEntries; ++b) {
+      const double t = lut_low_tangent_ + b * step;
+      lut_first_ring_[b] = static_cast<std::uint16_t>(
+          std::lower_bound(ring_tangents_.begin(), ring_tangents_.end(), t) -
+          ring_tangents_.begin());
+    }
+  }
   ranges_m_.assign(ring_elevations_rad_.size() * columns_, 0.0f);
   // With a ring field every point goes into its own ring's row. A de-skewed point is no
   // longer exactly on its beam's cone (0.3 m of motion during the sweep moves ground 10 m
@@ -120,10 +136,22 @@ int RangeImage::ColumnOf(double x, double y) const {
   return std::min(columns_ - 1, static_cast<int>(azimuth * inv_azimuth_resolution_));
 }
 
+int RangeImage::FirstRingAtOrAbove(double tangent) const {
+  const double entry = (tangent - lut_low_tangent_) * lut_inv_step_;
+  const int last = static_cast<int>(lut_first_ring_.size()) - 1;
+  const int b = entry <= 0.0 ? 0 : (entry >= last ? last : static_cast<int>(entry));
+  // The table's answer is that of the entry's lower edge; step to the exact one (also when
+  // rounding put the tangent into a neighbouring entry).
+  int ring = lut_first_ring_[b];
+  const int rings = static_cast<int>(ring_tangents_.size());
+  while (ring > 0 && ring_tangents_[ring - 1] >= tangent) --ring;
+  while (ring < rings && ring_tangents_[ring] < tangent) ++ring;
+  return ring;
+}
+
 int RangeImage::RingOfTangent(double tangent) const {
   if (ring_tangents_.empty() || !std::isfinite(tangent)) return -1;
-  const auto it = std::lower_bound(ring_tangents_.begin(), ring_tangents_.end(), tangent);
-  const int above = static_cast<int>(it - ring_tangents_.begin());
+  const int above = FirstRingAtOrAbove(tangent);
   // The nearest ring below or above, if the tangent is inside its elevation gate.
   int best = -1;
   double best_diff = std::numeric_limits<double>::infinity();
@@ -176,10 +204,14 @@ double RangeImage::RangeSlope(int ring, int column) const {
 }
 
 Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_m) const {
+  return Check(point_sensor, point_sensor.norm(), margin_m);
+}
+
+Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double range,
+                             double margin_m) const {
   if (ring_tangents_.empty()) return Visibility::kUnknown;
   const double tangent = ElevationTangent(point_sensor.x(), point_sensor.y(), point_sensor.z());
   if (!std::isfinite(tangent)) return Visibility::kUnknown;
-  const double range = point_sensor.norm();
   const int column = ColumnOf(point_sensor.x(), point_sensor.y());
   auto classify = [&](float measured, double margin) {
     if (measured <= 0.0f) return Visibility::kUnknown;
@@ -205,11 +237,10 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_
 
   // Between two beams: free only when both passed beyond the point. On ground seen at a
   // grazing angle the lower beam lands in front of the point, so ground is never "free".
-  const auto upper = std::upper_bound(ring_tangents_.begin(), ring_tangents_.end(), tangent);
-  if (upper == ring_tangents_.begin() || upper == ring_tangents_.end()) {
-    return Visibility::kUnknown;  // outside the vertical field of view
-  }
-  const int hi = static_cast<int>(upper - ring_tangents_.begin());
+  int hi = FirstRingAtOrAbove(tangent);  // then the first ring strictly above
+  const int rings = static_cast<int>(ring_tangents_.size());
+  while (hi < rings && ring_tangents_[hi] <= tangent) ++hi;
+  if (hi == 0 || hi == rings) return Visibility::kUnknown;  // outside the vertical field of view
   const int lo = hi - 1;
   if (ring_elevations_rad_[hi] - ring_elevations_rad_[lo] > config_.max_ring_gap_rad) {
     return Visibility::kUnknown;

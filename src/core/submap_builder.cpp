@@ -121,8 +121,9 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
     const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
     if ((p_submap - sensor_in_submap).squaredNorm() > max_range_sq) continue;
     const Eigen::Vector3d p_sensor = T_sensor_submap * p_submap;
-    const double margin = c.margin_base_m + c.margin_per_m * p_sensor.norm();
-    switch (image.Check(p_sensor, margin)) {
+    const double range = p_sensor.norm();
+    const double margin = c.margin_base_m + c.margin_per_m * range;
+    switch (image.Check(p_sensor, range, margin)) {
       case Visibility::kSeenThrough:
         if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) ++voxel.seen_through;
         if (voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {

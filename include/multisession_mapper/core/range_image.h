@@ -65,6 +65,14 @@ class RangeImage {
   /// elevation_tolerance_rad) is judged by that beam; a point between two beams is seen
   /// through only when both beams measured beyond it.
   Visibility Check(const Eigen::Vector3d& point_sensor, double margin_m) const;
+  /// The same with the point's range, point_sensor.norm(), already computed by the caller
+  /// (the visibility check needs it for its margin too).
+  Visibility Check(const Eigen::Vector3d& point_sensor, double range_m, double margin_m) const;
+
+  /// Index of the first ring whose elevation tangent is >= `tangent` (std::lower_bound over
+  /// the tangents of ring_elevations_rad()), from a table over the tangent then a step or
+  /// two: the binary search was a tenth of the visibility check's time. `tangent` finite.
+  int FirstRingAtOrAbove(double tangent) const;
 
   std::size_t num_rings() const { return ring_elevations_rad_.size(); }
   const std::vector<double>& ring_elevations_rad() const { return ring_elevations_rad_; }
@@ -73,6 +81,7 @@ class RangeImage {
   /// Ring whose elevation gate holds a point of this elevation tangent (z / horizontal
   /// distance), -1 if none.
   int RingOfTangent(double tangent) const;
+
   /// Azimuth column of a direction (x, y) in the sensor frame.
   int ColumnOf(double x, double y) const;
   /// Measured range at a pixel; +inf for free space without return (see config), 0 unknown.
@@ -88,6 +97,11 @@ class RangeImage {
   std::vector<double> ring_tangents_;        ///< tan of ring_elevations_rad_, ascending
   std::vector<double> gate_low_tangents_;    ///< tan(elevation - elevation_tolerance_rad)
   std::vector<double> gate_high_tangents_;   ///< tan(elevation + elevation_tolerance_rad)
+  /// FirstRingAtOrAbove's table: entry b holds the answer for the tangent
+  /// lut_low_tangent_ + b / lut_inv_step_.
+  double lut_low_tangent_ = 0.0;
+  double lut_inv_step_ = 0.0;
+  std::vector<std::uint16_t> lut_first_ring_;
   std::vector<float> ranges_m_;              ///< rings x columns, 0 = no return
 };
 
