@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <Eigen/Geometry>
+
 #include <gtest/gtest.h>
 
 #include "multisession_mapper/core/se3.h"
@@ -103,6 +105,28 @@ TEST(ScanNormalsTest, SurfaceNormalsFromNeighbouringRingsOnly) {
     EXPECT_TRUE(n.isZero(0.0));
   }
 }
+TEST(ScanNormalsTest, DropHighPointsOffWallsKeepsGroundWallsAndPointsWithoutNormal) {
+  // Sensor frame: ground below, a wall, a crown's leaves and a roof above, a point without
+  // a normal above.
+  PointVector points = {{5, 0, -1.8}, {5, 1, 2.0}, {4, 2, 3.0}, {6, 0, 2.5}, {3, 3, 2.0},
+                        {7, 0, 0.4}};
+  PointVector normals = {{0, 0, 1},  {1, 0, 0},  Eigen::Vector3d(0.5, 0, 0.866), {0, 0, -1},
+                         {0, 0, 0},  {0, 0.6, 0.8}};
+  DropHighPointsOffWalls(0.5, 0.3, &points, &normals);
+  ASSERT_EQ(points.size(), 4u);
+  ASSERT_EQ(normals.size(), 4u);
+  EXPECT_EQ(points[0], Eigen::Vector3d(5, 0, -1.8));  // ground: below the height
+  EXPECT_EQ(points[1], Eigen::Vector3d(5, 1, 2.0));   // wall: horizontal normal
+  EXPECT_EQ(points[2], Eigen::Vector3d(3, 3, 2.0));   // no normal: left for the ICP to skip
+  EXPECT_EQ(points[3], Eigen::Vector3d(7, 0, 0.4));   // tilted, but below the height
+  EXPECT_EQ(normals[1], Eigen::Vector3d(1, 0, 0));
+  EXPECT_EQ(normals[3], Eigen::Vector3d(0, 0.6, 0.8));
+  // An infinite height keeps everything.
+  PointVector all = {{0, 0, 9}}, all_normals = {{0, 0, 1}};
+  DropHighPointsOffWalls(std::numeric_limits<double>::infinity(), 0.3, &all, &all_normals);
+  EXPECT_EQ(all.size(), 1u);
+}
+
 }  // namespace
 }  // namespace core
 }  // namespace multisession_mapper

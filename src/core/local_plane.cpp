@@ -128,5 +128,20 @@ PointVector EstimateScanNormals(const LidarScan& scan, const std::vector<LidarPo
   return normals;
 }
 
+void DropHighPointsOffWalls(double min_height_m, double max_abs_normal_z, PointVector* points,
+                            PointVector* normals) {
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < points->size(); ++i) {
+    if ((*points)[i].z() > min_height_m && std::abs((*normals)[i].z()) > max_abs_normal_z) {
+      continue;
+    }
+    (*points)[kept] = (*points)[i];
+    (*normals)[kept] = (*normals)[i];
+    ++kept;
+  }
+  points->resize(kept);
+  normals->resize(kept);
+}
+
 }  // namespace core
 }  // namespace multisession_mapper

@@ -43,6 +43,12 @@ Status OdometryConfig::Validate() const {
     return Status::Error("odometry.map_voxel_size_m must be > 0, got " +
                          std::to_string(map_voxel_size_m));
   }
+  if (std::isnan(high_point_min_height_m) ||
+      !(high_point_max_normal_z >= 0.0 && high_point_max_normal_z <= 1.0)) {
+    return Status::Error(
+        "odometry.high_point_min_height_m must be a number (inf: off) and "
+        "odometry.high_point_max_normal_z in [0, 1]");
+  }
   if (!std::isfinite(registration_voxel_size_m) ||
       registration_voxel_size_m < map_voxel_size_m) {
     return Status::Error("odometry.registration_voxel_size_m must be >= map_voxel_size_m, got " +
@@ -169,6 +175,8 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     if (config_.use_scan_normals && result.deskewed_scan.has_ring) {
       source_normals =
           EstimateScanNormals(result.deskewed_scan, source_scan.points, config_.scan_normals);
+      DropHighPointsOffWalls(config_.high_point_min_height_m, config_.high_point_max_normal_z,
+                             &source, &source_normals);
     }
     result.timing.downsample_ms += prepare_watch.Lap();
   };

@@ -38,6 +38,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "window_rotation", &s.odometry.window_rotation},
       {"odometry", "refine_deskew", &s.odometry.refine_deskew},
       {"odometry", "use_scan_normals", &s.odometry.use_scan_normals},
+      {"odometry", "high_point_min_height_m", &s.odometry.high_point_min_height_m},
+      {"odometry", "high_point_max_normal_z", &s.odometry.high_point_max_normal_z},
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},
       {"odometry", "kernel_sigma_factor", &s.odometry.kernel_sigma_factor},
       {"odometry", "motion_prior_weight", &s.odometry.motion_prior_weight},

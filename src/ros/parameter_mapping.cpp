@@ -13,6 +13,8 @@ namespace ros_params {
   F(input_filter_max_range_m, o.input_filter.max_range_m)                    \
   F(odometry_map_voxel_size_m, o.map_voxel_size_m)                           \
   F(odometry_registration_voxel_size_m, o.registration_voxel_size_m)         \
+  F(odometry_high_point_min_height_m, o.high_point_min_height_m)             \
+  F(odometry_high_point_max_normal_z, o.high_point_max_normal_z)             \
   F(odometry_max_scan_gap_s, o.max_scan_gap_s)                               \
   F(odometry_motion_prior_weight, o.motion_prior_weight)
 

@@ -81,5 +81,12 @@ struct ScanNormalConfig {
 PointVector EstimateScanNormals(const LidarScan& scan, const std::vector<LidarPoint>& queries,
                                 const ScanNormalConfig& config);
 
+/// Removes, with their normals, the points higher than `min_height_m` (z, sensor frame) whose
+/// normal is not near-horizontal: |normal z| > max_abs_normal_z. Points without a normal (zero
+/// vector) stay; point-to-plane leaves them out anyway. `normals` has one entry per point.
+/// Why: see OdometryConfig::high_point_min_height_m (porous tree crowns above the sensor).
+void DropHighPointsOffWalls(double min_height_m, double max_abs_normal_z, PointVector* points,
+                            PointVector* normals);
+
 }  // namespace core
 }  // namespace multisession_mapper
