@@ -284,8 +284,12 @@ TEST(OdometryTest, ReportsPoseDeskewedScanAndMapPoints) {
       EXPECT_GE(r.icp_searches, r.icp.searches);
       EXPECT_LE(r.icp_searches, r.icp_iterations);
       // A second run is a refinement, hypotheses or the prior's release (tried, kept or not).
-      if (!r.refined && !r.turn_hypotheses_tried) EXPECT_LE(r.registrations, 2);
-      if (r.refined || r.motion_prior_released) EXPECT_GE(r.registrations, 2);
+      if (!r.refined && !r.turn_hypotheses_tried) {
+        EXPECT_LE(r.registrations, 2);
+      }
+      if (r.refined || r.motion_prior_released) {
+        EXPECT_GE(r.registrations, 2);
+      }
     }
   }
   const OdometryResult& r = last.value();
