@@ -6,7 +6,6 @@
 #include <random>
 
 #include <Eigen/Geometry>
-
 #include <gtest/gtest.h>
 
 #include "multisession_mapper/core/se3.h"
@@ -105,6 +104,7 @@ TEST(ScanNormalsTest, SurfaceNormalsFromNeighbouringRingsOnly) {
     EXPECT_TRUE(n.isZero(0.0));
   }
 }
+
 TEST(ScanNormalsTest, DropHighPointsOffWallsKeepsGroundWallsAndPointsWithoutNormal) {
   // Sensor frame: ground below, a wall, a crown's leaves and a roof above, a point without
   // a normal above.

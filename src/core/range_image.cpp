@@ -100,11 +100,11 @@ RangeImage::RangeImage(const LidarScan& scan, const RangeImageConfig& config)
         (ring_tangents_.back() + margin - lut_low_tangent_) / static_cast<double>(kEntries);
     lut_inv_step_ = 1.0 / step;
     lut_first_ring_.resize(kEntries);
+    std::size_t ring = 0;  // entries ascend, so the answer only moves up: one sweep
     for (int b = 0; b < kEntries; ++b) {
       const double t = lut_low_tangent_ + b * step;
-      lut_first_ring_[b] = static_cast<std::uint16_t>(
-          std::lower_bound(ring_tangents_.begin(), ring_tangents_.end(), t) -
-          ring_tangents_.begin());
+      while (ring < ring_tangents_.size() && ring_tangents_[ring] < t) ++ring;
+      lut_first_ring_[b] = static_cast<std::uint16_t>(ring);
     }
   }
   ranges_m_.assign(ring_elevations_rad_.size() * columns_, 0.0f);
@@ -151,7 +151,10 @@ int RangeImage::FirstRingAtOrAbove(double tangent) const {
 
 int RangeImage::RingOfTangent(double tangent) const {
   if (ring_tangents_.empty() || !std::isfinite(tangent)) return -1;
-  const int above = FirstRingAtOrAbove(tangent);
+  return RingOfTangent(tangent, FirstRingAtOrAbove(tangent));
+}
+
+int RangeImage::RingOfTangent(double tangent, int above) const {
   // The nearest ring below or above, if the tangent is inside its elevation gate.
   int best = -1;
   double best_diff = std::numeric_limits<double>::infinity();
@@ -223,7 +226,8 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double range,
   // On a beam: that beam decides. The margin grows where the measured surface is seen at a
   // grazing angle, by its range slope times the direction uncertainty plus the point's
   // elevation offset from the beam (see RangeImageConfig::angular_uncertainty_rad).
-  const int ring = RingOfTangent(tangent);
+  const int above = FirstRingAtOrAbove(tangent);  // for both cases below
+  const int ring = RingOfTangent(tangent, above);
   if (ring >= 0) {
     const float measured = MeasuredRange(ring, column, range);
     double margin = margin_m;
@@ -237,7 +241,7 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double range,
 
   // Between two beams: free only when both passed beyond the point. On ground seen at a
   // grazing angle the lower beam lands in front of the point, so ground is never "free".
-  int hi = FirstRingAtOrAbove(tangent);  // then the first ring strictly above
+  int hi = above;  // then the first ring strictly above
   const int rings = static_cast<int>(ring_tangents_.size());
   while (hi < rings && ring_tangents_[hi] <= tangent) ++hi;
   if (hi == 0 || hi == rings) return Visibility::kUnknown;  // outside the vertical field of view

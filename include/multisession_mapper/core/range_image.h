@@ -81,7 +81,8 @@ class RangeImage {
   /// Ring whose elevation gate holds a point of this elevation tangent (z / horizontal
   /// distance), -1 if none.
   int RingOfTangent(double tangent) const;
-
+  /// The same with FirstRingAtOrAbove(tangent) already known (`above`); `tangent` finite.
+  int RingOfTangent(double tangent, int above) const;
   /// Azimuth column of a direction (x, y) in the sensor frame.
   int ColumnOf(double x, double y) const;
   /// Measured range at a pixel; +inf for free space without return (see config), 0 unknown.
