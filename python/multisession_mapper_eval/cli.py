@@ -346,7 +346,8 @@ def run(options):
                                               kept_radius, options.kept_rule, gt.all_points,
                                               gt.all_category)
             figures['breakdown'] = dynamics.breakdown(gt.category, kept, gt.path_distance,
-                                                      gt.object_ids, gt.low_presence)
+                                                      gt.object_ids, gt.low_presence,
+                                                      labels=gt.labels)
             figures['evaluated'] = True
             figures['eval_range_m'] = eval_range
             figures['points']['outside_eval_range'] = gt.excluded

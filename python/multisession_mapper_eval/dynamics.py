@@ -41,6 +41,9 @@ RANGE_BANDS_M = (0.0, 10.0, 20.0, 30.0, 40.0)
 
 HIGH_DYNAMIC_CLASSES = (9, 10)
 CANOPY_CLASS = 6
+# The simulator's point classes (docs/simulator.md, labels PCD).
+CLASS_NAMES = ('terrain', 'building', 'wall', 'pole', 'hedge', 'trunk', 'canopy', 'parked car',
+               'movable', 'moving car', 'pedestrian')
 STATIC, LOW, HIGH = 0, 1, 2
 
 
@@ -311,7 +314,8 @@ def ground_truth(truth, map_session_names, truth_names, truth_trajectories, t_ma
                        classify(all_labels, all_ids, low), path_distance, presence)
 
 
-def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RANGE_BANDS_M):
+def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RANGE_BANDS_M,
+              labels=None):
     """Where the dynamic-removal figures come from (a diagnosis, next to the totals).
 
     'by_range': per band of the distance to the path (band i is [bands[i], bands[i+1]), the last
@@ -320,6 +324,9 @@ def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RAN
     empty.
     'low_by_presence': per set of map sessions a low-dynamic object is present in, the DA of its
     points (e.g. ('s00',): in the first session only, gone later). Undefined ratios are None.
+    'static_by_class' (with `labels`): per class of the static points (parked cars and movable
+    objects present in every session that saw their place are static too), SA and the counts of
+    points and of kept points, in class order; where the static points a map loses are.
     """
     static, low, high = category == STATIC, category == LOW, category == HIGH
     finite = np.isfinite(path_distance)
@@ -345,4 +352,12 @@ def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RAN
         by_presence.append({'present_in': list(sessions), 'objects': len(groups[sessions]),
                             'points': int(np.sum(mine)),
                             'da': _ratio(np.sum(~kept & mine), np.sum(mine))})
-    return {'by_range': by_range, 'low_by_presence': by_presence}
+    by_class = []
+    if labels is not None:
+        for value in np.unique(labels[static]):
+            mine = static & (labels == value)
+            name = CLASS_NAMES[value] if 0 <= value < len(CLASS_NAMES) else 'class %d' % value
+            by_class.append({'class': int(value), 'name': name, 'points': int(np.sum(mine)),
+                             'kept': int(np.sum(kept & mine)),
+                             'sa': _ratio(np.sum(kept & mine), np.sum(mine))})
+    return {'by_range': by_range, 'low_by_presence': by_presence, 'static_by_class': by_class}

@@ -148,7 +148,8 @@ def markdown(report):
 
 
 def _breakdown_tables(b):
-    """The dynamic-removal breakdown (by distance to the path, by presence) as markdown."""
+    """The dynamic-removal breakdown (by distance to the path, by presence, static points by
+    class) as markdown."""
     if not b:
         return []
     rows = [['%.0f-%s' % (r['from_m'], '%.0f' % r['to_m'] if r['to_m'] is not None else ''),
@@ -164,6 +165,13 @@ def _breakdown_tables(b):
                   _table(['present in', 'objects', 'points', 'DA'],
                          [[' + '.join(p['present_in']) or '-', p['objects'], p['points'],
                            _fmt(p['da'], '%.2f', 100)] for p in presence]), '']
+    by_class = b.get('static_by_class', [])
+    if by_class:
+        parts += ['Static points by class:', '',
+                  _table(['class', 'SA', 'points', 'lost'],
+                         [[c['name'], _fmt(c['sa'], '%.2f', 100), c['points'],
+                           c['points'] - c['kept']]
+                          for c in by_class]), '']
     return parts
 
 

@@ -209,6 +209,20 @@ def test_breakdown_by_range_and_presence():
     p = b['low_by_presence']
     assert [x['present_in'] for x in p] == [['s00'], ['s00', 's01']]
     assert p[0]['points'] == 2 and p[0]['da'] == 0.5 and p[1]['da'] == 1.0
+    assert b['static_by_class'] == []  # no labels given
+
+
+def test_breakdown_of_static_points_by_class():
+    # Static terrain (kept, lost, kept), a static wall point (lost) and a static parked car
+    # (kept); the low-dynamic car and the pedestrian are not static and count in no class.
+    category = np.array([dynamics.STATIC] * 5 + [dynamics.LOW, dynamics.HIGH])
+    labels = np.array([0, 0, 2, 0, 7, 7, 10])
+    kept = np.array([True, False, False, True, True, False, False])
+    b = dynamics.breakdown(category, kept, np.full(7, 5.0), np.arange(7), {}, labels=labels)
+    assert b['static_by_class'] == [
+        {'class': 0, 'name': 'terrain', 'points': 3, 'kept': 2, 'sa': pytest.approx(2 / 3)},
+        {'class': 2, 'name': 'wall', 'points': 1, 'kept': 0, 'sa': 0.0},
+        {'class': 7, 'name': 'parked car', 'points': 1, 'kept': 1, 'sa': 1.0}]
 
 
 def test_ground_truth_gives_path_distances_and_presence(synthetic_dirs):
