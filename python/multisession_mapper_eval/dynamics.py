@@ -324,9 +324,10 @@ def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RAN
     empty.
     'low_by_presence': per set of map sessions a low-dynamic object is present in, the DA of its
     points (e.g. ('s00',): in the first session only, gone later). Undefined ratios are None.
-    'static_by_class' (with `labels`): per class of the static points (parked cars and movable
-    objects present in every session that saw their place are static too), SA and the counts of
-    points and of kept points, in class order; where the static points a map loses are.
+    'by_class' (with `labels`): per simulator class, in class order, the static points (parked
+    cars and movable objects present in every session that saw their place are static too),
+    the low- and high-dynamic points, how many of each were kept (static) or removed (dynamic),
+    SA and both DAs: which classes the lost static and the kept dynamic points belong to.
     """
     static, low, high = category == STATIC, category == LOW, category == HIGH
     finite = np.isfinite(path_distance)
@@ -354,10 +355,18 @@ def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RAN
                             'da': _ratio(np.sum(~kept & mine), np.sum(mine))})
     by_class = []
     if labels is not None:
-        for value in np.unique(labels[static]):
-            mine = static & (labels == value)
+        for value in np.unique(labels):
+            mine = labels == value
             name = CLASS_NAMES[value] if 0 <= value < len(CLASS_NAMES) else 'class %d' % value
-            by_class.append({'class': int(value), 'name': name, 'points': int(np.sum(mine)),
-                             'kept': int(np.sum(kept & mine)),
-                             'sa': _ratio(np.sum(kept & mine), np.sum(mine))})
-    return {'by_range': by_range, 'low_by_presence': by_presence, 'static_by_class': by_class}
+            row = {'class': int(value), 'name': name}
+            for key, members in (('static', static), ('low', low), ('high', high)):
+                of_class = mine & members
+                row[key + '_points'] = int(np.sum(of_class))
+                # kept for static points, removed for dynamic ones
+                row[key + ('_kept' if key == 'static' else '_removed')] = int(
+                    np.sum((kept if key == 'static' else ~kept) & of_class))
+            row['sa'] = _ratio(row['static_kept'], row['static_points'])
+            row['low_da'] = _ratio(row['low_removed'], row['low_points'])
+            row['high_da'] = _ratio(row['high_removed'], row['high_points'])
+            by_class.append(row)
+    return {'by_range': by_range, 'low_by_presence': by_presence, 'by_class': by_class}

@@ -148,8 +148,8 @@ def markdown(report):
 
 
 def _breakdown_tables(b):
-    """The dynamic-removal breakdown (by distance to the path, by presence, static points by
-    class) as markdown."""
+    """The dynamic-removal breakdown (by distance to the path, by presence, by class) as
+    markdown."""
     if not b:
         return []
     rows = [['%.0f-%s' % (r['from_m'], '%.0f' % r['to_m'] if r['to_m'] is not None else ''),
@@ -165,13 +165,17 @@ def _breakdown_tables(b):
                   _table(['present in', 'objects', 'points', 'DA'],
                          [[' + '.join(p['present_in']) or '-', p['objects'], p['points'],
                            _fmt(p['da'], '%.2f', 100)] for p in presence]), '']
-    by_class = b.get('static_by_class', [])
+    by_class = b.get('by_class', [])
     if by_class:
-        parts += ['Static points by class:', '',
-                  _table(['class', 'SA', 'points', 'lost'],
-                         [[c['name'], _fmt(c['sa'], '%.2f', 100), c['points'],
-                           c['points'] - c['kept']]
-                          for c in by_class]), '']
+        parts += ['By class (static points lost, dynamic points kept):', '',
+                  _table(['class', 'SA', 'static', 'lost', 'low-dynamic DA', 'low', 'kept',
+                          'high-dynamic DA', 'high', 'kept'],
+                         [[c['name'], _fmt(c['sa'], '%.2f', 100), c['static_points'],
+                           c['static_points'] - c['static_kept'],
+                           _fmt(c['low_da'], '%.2f', 100), c['low_points'],
+                           c['low_points'] - c['low_removed'],
+                           _fmt(c['high_da'], '%.2f', 100), c['high_points'],
+                           c['high_points'] - c['high_removed']] for c in by_class]), '']
     return parts
 
 

@@ -209,20 +209,28 @@ def test_breakdown_by_range_and_presence():
     p = b['low_by_presence']
     assert [x['present_in'] for x in p] == [['s00'], ['s00', 's01']]
     assert p[0]['points'] == 2 and p[0]['da'] == 0.5 and p[1]['da'] == 1.0
-    assert b['static_by_class'] == []  # no labels given
+    assert b['by_class'] == []  # no labels given
 
 
-def test_breakdown_of_static_points_by_class():
-    # Static terrain (kept, lost, kept), a static wall point (lost) and a static parked car
-    # (kept); the low-dynamic car and the pedestrian are not static and count in no class.
-    category = np.array([dynamics.STATIC] * 5 + [dynamics.LOW, dynamics.HIGH])
-    labels = np.array([0, 0, 2, 0, 7, 7, 10])
-    kept = np.array([True, False, False, True, True, False, False])
-    b = dynamics.breakdown(category, kept, np.full(7, 5.0), np.arange(7), {}, labels=labels)
-    assert b['static_by_class'] == [
-        {'class': 0, 'name': 'terrain', 'points': 3, 'kept': 2, 'sa': pytest.approx(2 / 3)},
-        {'class': 2, 'name': 'wall', 'points': 1, 'kept': 0, 'sa': 0.0},
-        {'class': 7, 'name': 'parked car', 'points': 1, 'kept': 1, 'sa': 1.0}]
+def test_breakdown_by_class():
+    # Static terrain (kept, lost, kept), a static wall point (lost), a static parked car (kept),
+    # a low-dynamic parked car (kept, i.e. not removed) and two pedestrian points (one removed).
+    category = np.array([dynamics.STATIC] * 5 + [dynamics.LOW] + [dynamics.HIGH] * 2)
+    labels = np.array([0, 0, 2, 0, 7, 7, 10, 10])
+    kept = np.array([True, False, False, True, True, True, False, True])
+    b = dynamics.breakdown(category, kept, np.full(8, 5.0), np.arange(8), {}, labels=labels)
+    rows = {r['name']: r for r in b['by_class']}
+    assert [r['class'] for r in b['by_class']] == [0, 2, 7, 10]
+    assert rows['terrain']['static_points'] == 3 and rows['terrain']['static_kept'] == 2
+    assert rows['terrain']['sa'] == pytest.approx(2 / 3) and rows['terrain']['low_da'] is None
+    assert rows['wall']['sa'] == 0.0
+    car = rows['parked car']
+    assert (car['static_points'], car['static_kept'], car['low_points'], car['low_removed']) == \
+        (1, 1, 1, 0)
+    assert car['sa'] == 1.0 and car['low_da'] == 0.0 and car['high_da'] is None
+    walker = rows['pedestrian']
+    assert walker['high_points'] == 2 and walker['high_removed'] == 1
+    assert walker['high_da'] == 0.5 and walker['sa'] is None
 
 
 def test_ground_truth_gives_path_distances_and_presence(synthetic_dirs):

@@ -27,11 +27,16 @@ def test_breakdown_tables():
          'low_by_presence': [{'present_in': [], 'objects': 1, 'points': 3, 'da': None},
                              {'present_in': ['s00', 's01'], 'objects': 2, 'points': 5,
                               'da': 0.4}],
-         'static_by_class': [{'class': 0, 'name': 'terrain', 'points': 8, 'kept': 6,
-                              'sa': 0.75}]}
+         'by_class': [{'class': 0, 'name': 'terrain', 'static_points': 8, 'static_kept': 6,
+                       'low_points': 0, 'low_removed': 0, 'high_points': 0, 'high_removed': 0,
+                       'sa': 0.75, 'low_da': None, 'high_da': None},
+                      {'class': 10, 'name': 'pedestrian', 'static_points': 0,
+                       'static_kept': 0, 'low_points': 0, 'low_removed': 0, 'high_points': 4,
+                       'high_removed': 3, 'sa': None, 'low_da': None, 'high_da': 0.75}]}
     text = '\n'.join(report._breakdown_tables(b))
     assert '| 0-10 | 50.00 | 2 | - | 0 | 100.00 | 1 |' in text
     assert '| 40- | - | 0 | 25.00 | 4 | - | 0 |' in text
     assert '| - | 1 | 3 | - |' in text
     assert '| s00 + s01 | 2 | 5 | 40.00 |' in text
-    assert '| terrain | 75.00 | 8 | 2 |' in text
+    assert '| terrain | 75.00 | 8 | 2 | - | 0 | 0 | - | 0 | 0 |' in text
+    assert '| pedestrian | - | 0 | 0 | - | 0 | 0 | 75.00 | 4 | 1 |' in text
