@@ -14,7 +14,8 @@ Per new session (every session after the first, in merge order), each of its sub
   - missed: otherwise (overlap existed but no match was accepted).
 The origin of a submap is the sensor pose at its `first_stamp`, looked up in the truth TUM (times
 the inverse of that scan's pose in the submap: the identity but for a re-anchored first submap).
-Intra-session loops (kind `intra`): accepted, correct, wrong by the same pose test.
+Intra-session loops (kind `intra`): accepted, correct, wrong by the same pose test, without the
+overlap condition (an exact edge between submaps whose paths stay apart is still right).
 A submap that cannot be judged (missing from the manifest, whose `fused` entries must stay, or
 stamps missing from the truth) is `unknown` and counted in `submaps_unknown`, never guessed.
 Loops found by the proximity search after alignment (kind `inter_proximity`) are counted
@@ -69,11 +70,15 @@ class TruthLookup(object):
         return trajectory.positions[inside]
 
 
-def _judge(loop, submaps_by_key, lookup, options):
+def _judge(loop, submaps_by_key, lookup, options, require_overlap=True):
     """(correct, trans_err_m, rot_err_deg) of one loop row.
 
     correct is None when the row cannot be judged (a submap missing from the manifest or a
-    stamp missing from the truth); an accepted row without a pose is wrong.
+    stamp missing from the truth); an accepted row without a pose is wrong. With
+    `require_overlap` (place recognition: a correct match is a real revisit) the two submaps'
+    truth scan positions must also come within `overlap_radius_m`; without it (intra-session
+    loops, whose question is whether the graph edge is right) the pose alone decides: two
+    submaps whose paths stay 10 m apart can still share a street and register exactly.
     """
     current = submaps_by_key.get((loop.current_session, loop.current_submap))
     history = submaps_by_key.get((loop.history_session, loop.history_submap))
@@ -88,9 +93,9 @@ def _judge(loop, submaps_by_key, lookup, options):
     truth = tr.inverse(t_h) @ t_c
     trans_err, rot_err = tr.relative_error(loop.pose, truth)
     pos_c, pos_h = lookup.scan_positions(current), lookup.scan_positions(history)
-    overlap = bool(len(pos_c) and len(pos_h)
-                   and neighbors.has_neighbor_within(pos_h, pos_c,
-                                                     options.overlap_radius_m).any())
+    overlap = not require_overlap or bool(
+        len(pos_c) and len(pos_h)
+        and neighbors.has_neighbor_within(pos_h, pos_c, options.overlap_radius_m).any())
     ok = overlap and trans_err <= options.max_trans_m and rot_err <= options.max_rot_deg
     return ok, trans_err, rot_err
 
@@ -125,7 +130,8 @@ def session_table(map_dir, session_index, truth_trajectories, options):
     intra_t, intra_r = [], []
     for row in rows:
         if row.kind == 'intra' and row.status == 'accepted':
-            ok, t_err, r_err = _judge(row, submaps_by_key, lookup, options)
+            ok, t_err, r_err = _judge(row, submaps_by_key, lookup, options,
+                                      require_overlap=False)
             result['intra_loops_accepted'] += 1
             if ok is None:
                 result['loops_unjudged'] += 1

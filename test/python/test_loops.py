@@ -47,6 +47,16 @@ def test_thresholds_are_options(synthetic_dirs):
     assert tables[1]['submaps_wrong'] == 2
 
 
+def test_intra_session_loops_are_judged_by_their_pose_alone(synthetic_dirs):
+    # With an overlap radius of a micrometre no two submaps' truth paths "overlap": the exact
+    # inter-session match of s01/0 is then wrong (place recognition needs a real revisit), but
+    # the exact intra-session edge s00/1 -> s00/0 stays correct (the graph edge is right) and
+    # the 5 deg-off one stays wrong.
+    tables = _tables(*synthetic_dirs, overlap_radius_m=1e-6)
+    assert tables[1]['submap_status']['0'] == 'wrong'
+    assert tables[0]['intra_loops_correct'] == 1 and tables[0]['intra_loops_wrong'] == 1
+
+
 def test_submap_missing_from_manifest_is_unknown(synthetic_dirs, tmp_path):
     import shutil
     map_copy = str(tmp_path / 'map')
