@@ -414,8 +414,9 @@ TEST_F(InterSessionMatcherTest, ChainedSequenceGuidancePlacesSubmapsBeyondTheGap
 }
 
 // Every record rejected for disagreeing with its reference is listed as a dependent loop (for
-// the merger's second judgement), with that record, its pose, and an accepted reference.
-// Returns how many are listed.
+// the merger's second judgement), with that record, its pose, and a reference that is accepted
+// or, for a second candidate of the reference's own submap, withdrawn with it. Returns how many
+// are listed.
 std::size_t ExpectDependentLoopsListed(const InterSessionMatchResult& r) {
   std::set<std::size_t> listed;
   for (const DependentLoop& d : r.dependent) {
@@ -429,7 +430,12 @@ std::size_t ExpectDependentLoopsListed(const InterSessionMatchResult& r) {
     EXPECT_NE(rec.reason.find("disagrees with the loop of submap"), std::string::npos);
     EXPECT_EQ(rec.current_submap, d.loop.current_submap);
     EXPECT_TRUE(rec.T_history_current.isApprox(d.loop.T_history_current));
-    EXPECT_EQ(r.records[d.reference_record].status, LoopStatus::kAccepted);
+    const LoopRecord& ref = r.records[d.reference_record];
+    if (ref.current_submap == rec.current_submap && ref.status == LoopStatus::kRejected) {
+      EXPECT_NE(ref.reason.find("withdrawn"), std::string::npos) << ref.reason;
+    } else {
+      EXPECT_EQ(ref.status, LoopStatus::kAccepted);
+    }
   }
   std::size_t disagreeing = 0;
   for (const LoopRecord& rec : r.records) {
@@ -551,6 +557,59 @@ TEST_F(InterSessionMatcherTest, AGuidedCandidateThatDisagreesWithItsSubmapsLoopI
   }
   EXPECT_GE(refused, 1) << "the guided registration itself refuses the shifted submap";
   EXPECT_GE(ExpectDependentLoopsListed(r), static_cast<std::size_t>(refused));
+}
+
+TEST_F(InterSessionMatcherTest, ASubmapWhoseTwoRegistrationsDisagreeIsPlacedByItsNeighbours) {
+  // The reverse of the test above: the submap's FIRST loop is the wrong one. Tilting the
+  // history submap of that loop by 0.025 rad about its origin makes the loop imply a map <-
+  // session transform tilted by as much (the consistency bounds grow with the distance to the
+  // other loops, so it joins the group), while the guided registration of the submap's other
+  // candidate lands where the truth is and disagrees with it. Nothing says which of the two is
+  // right: both are withdrawn and the submap's neighbours place it (sequence guidance), which
+  // accepts the untilted history submap only.
+  const InterSessionMatchResult reference = InterSessionMatcher::Create(InterSessionMatcherConfig())
+                                                .value()
+                                                .Match(data_->history, data_->current,
+                                                       *data_->recognizer)
+                                                .value();
+  ASSERT_TRUE(reference.aligned);
+  std::map<std::uint32_t, std::size_t> first_loop;  // current submap -> history index
+  std::uint32_t submap = 0;
+  std::size_t tilted = data_->history.submaps.size();
+  for (const InterSessionLoop& loop : reference.loops) {
+    const auto inserted = first_loop.emplace(loop.current_submap, loop.history_index);
+    if (!inserted.second) {
+      submap = loop.current_submap;
+      tilted = inserted.first->second;
+      break;
+    }
+  }
+  ASSERT_LT(tilted, data_->history.submaps.size()) << "no submap with a guided loop";
+  MapContents history = data_->history;
+  history.submaps[tilted].T_map_submap.linear() =
+      history.submaps[tilted].T_map_submap.linear() *
+      Eigen::AngleAxisd(0.025, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const InterSessionMatchResult r = InterSessionMatcher::Create(InterSessionMatcherConfig())
+                                        .value()
+                                        .Match(history, data_->current, *data_->recognizer)
+                                        .value();
+  ASSERT_TRUE(r.aligned);
+  int withdrawn = 0;
+  for (const LoopRecord& rec : r.records) {
+    if (rec.current_submap != submap || !rec.has_pose) continue;
+    std::cout << "  cur " << rec.current_submap << " -> " << rec.history_submap << " kind "
+              << static_cast<int>(rec.kind) << " status " << static_cast<int>(rec.status) << ": "
+              << rec.reason << std::endl;
+    withdrawn += rec.reason.find("withdrawn") != std::string::npos;
+  }
+  EXPECT_GE(withdrawn, 1);
+  bool placed = false;
+  for (const InterSessionLoop& loop : r.loops) {
+    EXPECT_NE(loop.history_index, tilted) << "a loop to the tilted submap was accepted";
+    placed = placed || loop.current_submap == submap;
+  }
+  EXPECT_TRUE(placed) << "the neighbours' loops place the submap again";
+  ExpectEveryAcceptedLoopTrue(r);
 }
 
 TEST(InterSessionMatcherConfigTest, ValidatesFields) {
