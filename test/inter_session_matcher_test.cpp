@@ -145,6 +145,13 @@ class InterSessionMatcherTest : public ::testing::Test {
     return data_->history_world[history_index].inverse() * data_->current_world[current_id];
   }
   static Pose3 TrueMapSession() { return data_->T_world_map.inverse() * data_->T_world_session; }
+  // The current session matched against `history` with the default configuration.
+  static InterSessionMatchResult MatchDefault(const MapContents& history) {
+    return InterSessionMatcher::Create(InterSessionMatcherConfig())
+        .value()
+        .Match(history, data_->current, *data_->recognizer)
+        .value();
+  }
 
   static void ExpectEveryAcceptedLoopTrue(const InterSessionMatchResult& r) {
     for (const InterSessionLoop& loop : r.loops) {
@@ -522,11 +529,7 @@ TEST_F(InterSessionMatcherTest, AGuidedCandidateThatDisagreesWithItsSubmapsLoopI
   // Shift the history submap of one guided pair by 1.5 m: the fine stage still finds it (within
   // its correction bound) but the loop implies another map <- session transform than the
   // accepted loop that guided it.
-  const InterSessionMatchResult reference = InterSessionMatcher::Create(InterSessionMatcherConfig())
-                                                .value()
-                                                .Match(data_->history, data_->current,
-                                                       *data_->recognizer)
-                                                .value();
+  const InterSessionMatchResult reference = MatchDefault(data_->history);
   ASSERT_TRUE(reference.aligned);
   ASSERT_GE(reference.loops.size(), 2u);
   // Each submap's first loop comes from registration without guess; the guided ones follow.
@@ -541,10 +544,7 @@ TEST_F(InterSessionMatcherTest, AGuidedCandidateThatDisagreesWithItsSubmapsLoopI
   ASSERT_LT(shifted, data_->history.submaps.size()) << "no submap with a guided loop";
   MapContents history = data_->history;
   history.submaps[shifted].T_map_submap.translation() += Eigen::Vector3d(0.0, 1.5, 0.0);
-  const InterSessionMatchResult r = InterSessionMatcher::Create(InterSessionMatcherConfig())
-                                        .value()
-                                        .Match(history, data_->current, *data_->recognizer)
-                                        .value();
+  const InterSessionMatchResult r = MatchDefault(history);
   ASSERT_TRUE(r.aligned);
   for (const InterSessionLoop& loop : r.loops) EXPECT_NE(loop.history_index, shifted);
   int refused = 0;
@@ -567,11 +567,7 @@ TEST_F(InterSessionMatcherTest, ASubmapWhoseTwoRegistrationsDisagreeIsPlacedByIt
   // candidate lands where the truth is and disagrees with it. Nothing says which of the two is
   // right: both are withdrawn and the submap's neighbours place it (sequence guidance), which
   // accepts the untilted history submap only.
-  const InterSessionMatchResult reference = InterSessionMatcher::Create(InterSessionMatcherConfig())
-                                                .value()
-                                                .Match(data_->history, data_->current,
-                                                       *data_->recognizer)
-                                                .value();
+  const InterSessionMatchResult reference = MatchDefault(data_->history);
   ASSERT_TRUE(reference.aligned);
   std::map<std::uint32_t, std::size_t> first_loop;  // current submap -> history index
   std::uint32_t submap = 0;
@@ -589,10 +585,7 @@ TEST_F(InterSessionMatcherTest, ASubmapWhoseTwoRegistrationsDisagreeIsPlacedByIt
   history.submaps[tilted].T_map_submap.linear() =
       history.submaps[tilted].T_map_submap.linear() *
       Eigen::AngleAxisd(0.025, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const InterSessionMatchResult r = InterSessionMatcher::Create(InterSessionMatcherConfig())
-                                        .value()
-                                        .Match(history, data_->current, *data_->recognizer)
-                                        .value();
+  const InterSessionMatchResult r = MatchDefault(history);
   ASSERT_TRUE(r.aligned);
   int withdrawn = 0;
   for (const LoopRecord& rec : r.records) {

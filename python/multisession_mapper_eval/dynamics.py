@@ -358,15 +358,13 @@ def breakdown(category, kept, path_distance, object_ids, low_presence, bands=RAN
         for value in np.unique(labels):
             mine = labels == value
             name = CLASS_NAMES[value] if 0 <= value < len(CLASS_NAMES) else 'class %d' % value
-            row = {'class': int(value), 'name': name}
-            for key, members in (('static', static), ('low', low), ('high', high)):
-                of_class = mine & members
-                row[key + '_points'] = int(np.sum(of_class))
-                # kept for static points, removed for dynamic ones
-                row[key + ('_kept' if key == 'static' else '_removed')] = int(
-                    np.sum((kept if key == 'static' else ~kept) & of_class))
-            row['sa'] = _ratio(row['static_kept'], row['static_points'])
-            row['low_da'] = _ratio(row['low_removed'], row['low_points'])
-            row['high_da'] = _ratio(row['high_removed'], row['high_points'])
-            by_class.append(row)
+            s, lo, hi = mine & static, mine & low, mine & high
+            by_class.append({
+                'class': int(value), 'name': name,
+                'static_points': int(np.sum(s)), 'static_kept': int(np.sum(kept & s)),
+                'low_points': int(np.sum(lo)), 'low_removed': int(np.sum(~kept & lo)),
+                'high_points': int(np.sum(hi)), 'high_removed': int(np.sum(~kept & hi)),
+                'sa': _ratio(np.sum(kept & s), np.sum(s)),
+                'low_da': _ratio(np.sum(~kept & lo), np.sum(lo)),
+                'high_da': _ratio(np.sum(~kept & hi), np.sum(hi))})
     return {'by_range': by_range, 'low_by_presence': by_presence, 'by_class': by_class}

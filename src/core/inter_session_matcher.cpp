@@ -445,7 +445,8 @@ RegisteredLoops RegisterAgainstReferences(
   std::vector<double> discrepancy(registered.size(), 0.0);
   for (std::size_t j = 0; j < registered.size(); ++j) {
     const Registered& r = registered[j];
-    discrepancy[j] = ConsistencyDiscrepancy(r, *reference_of_record.at(r.record), config.consistency);
+    const Registered& ref = *reference_of_record.at(r.record);
+    discrepancy[j] = ConsistencyDiscrepancy(r, ref, config.consistency);
     if (discrepancy[j] > 1.0) continue;
     const auto found = nearest.find(r.current);
     if (found == nearest.end() || discrepancy[j] < discrepancy[found->second]) {
@@ -456,30 +457,31 @@ RegisteredLoops RegisterAgainstReferences(
     const Registered& r = registered[j];
     LoopRecord& record = result->records[r.record];
     const Registered& ref = *reference_of_record.at(r.record);
-    const auto best = nearest.find(r.current);
-    if (discrepancy[j] <= 1.0 && best->second != j &&
-        !Agree(r, registered[best->second], config.consistency)) {
+    const std::string placing_submap = std::to_string(current.submaps[ref.current].id);
+    if (discrepancy[j] > 1.0) {
       record.status = LoopStatus::kRejected;
-      record.reason = "disagrees with the " + relation + " loop of the same submap to history " +
-                      "submap " + std::to_string(result->records[registered[best->second].record].history_submap) +
-                      ", which is nearer where submap " +
-                      std::to_string(current.submaps[ref.current].id) + " places it";
-    } else if (discrepancy[j] <= 1.0) {
-      record.status = LoopStatus::kAccepted;
-      record.reason.clear();
-      result->loops.push_back(r.loop);
-      accepted.push_back(r);
-    } else {
-      record.status = LoopStatus::kRejected;
-      record.reason = "disagrees with the loop of submap " +
-                      std::to_string(current.submaps[ref.current].id) + " that " + relation +
-                      " it";
+      record.reason = "disagrees with the loop of submap " + placing_submap + " that " +
+                      relation + " it";
       DependentLoop dependent;
       dependent.loop = r.loop;
       dependent.record = r.record;
       dependent.reference_record = ref.record;
       result->dependent.push_back(dependent);
+      continue;
     }
+    const Registered& best = registered[nearest.at(r.current)];
+    if (&best != &r && !Agree(r, best, config.consistency)) {
+      record.status = LoopStatus::kRejected;
+      record.reason = "disagrees with the " + relation +
+                      " loop of the same submap to history submap " +
+                      std::to_string(result->records[best.record].history_submap) +
+                      ", which is nearer where submap " + placing_submap + " places it";
+      continue;
+    }
+    record.status = LoopStatus::kAccepted;
+    record.reason.clear();
+    result->loops.push_back(r.loop);
+    accepted.push_back(r);
   }
   return accepted;
 }
@@ -612,14 +614,12 @@ void WithdrawSuspectSubmaps(const SequenceConsistencyConfig& consistency,
                             const std::map<std::size_t, const Registered*>& reference_of_record,
                             RegisteredLoops* registered, std::vector<bool>* in_group,
                             InterSessionMatchResult* result) {
-  std::map<std::size_t, std::size_t> submap_of_record;  // registered loops' records
-  for (const Registered& r : *registered) submap_of_record[r.record] = r.current;
+  // The guided registrations that disagreed with their reference (the submap's own loop).
   std::map<std::size_t, std::int64_t> suspect;  // current submap -> a disagreeing history id
   for (std::size_t d = dependent_before; d < result->dependent.size(); ++d) {
-    const auto found = submap_of_record.find(result->dependent[d].reference_record);
-    if (found != submap_of_record.end()) {
-      suspect.emplace(found->second, result->records[result->dependent[d].record].history_submap);
-    }
+    const std::size_t record = result->dependent[d].record;
+    suspect.emplace(reference_of_record.at(record)->current,
+                    result->records[record].history_submap);
   }
   if (suspect.empty()) return;
   const auto reason_for = [&](std::size_t c) {
