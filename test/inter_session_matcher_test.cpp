@@ -623,6 +623,13 @@ TEST(InterSessionMatcherConfigTest, ValidatesFields) {
   c.consistency.secondary_rotation_per_m = -0.1;
   EXPECT_FALSE(c.Validate().ok());
   c = InterSessionMatcherConfig();
+  c.consistency.same_submap_translation_m = 0.0;  // one bound off, the other on
+  EXPECT_FALSE(c.Validate().ok());
+  c.consistency.same_submap_rotation_rad = 0.0;   // both off
+  EXPECT_TRUE(c.Validate().ok());
+  c.consistency.same_submap_translation_m = -0.1;
+  EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
   c.sequence.max_gap_submaps = -1;
   EXPECT_FALSE(c.Validate().ok());
   c = InterSessionMatcherConfig();

@@ -13,6 +13,7 @@
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/se3.h"
 #include "multisession_mapper/core/submap.h"
+#include "multisession_mapper/core/submap_loop_agreement.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -118,6 +119,13 @@ Status SequenceConsistencyConfig::Validate() const {
   if (!(secondary_translation_per_m >= 0.0) || !(secondary_rotation_per_m >= 0.0) ||
       !std::isfinite(secondary_translation_per_m) || !std::isfinite(secondary_rotation_per_m)) {
     return Status::Error("sequence_consistency secondary per-metre bounds must be >= 0");
+  }
+  if (!(same_submap_translation_m >= 0.0) || !(same_submap_rotation_rad >= 0.0) ||
+      !std::isfinite(same_submap_translation_m) || !std::isfinite(same_submap_rotation_rad) ||
+      ((same_submap_translation_m > 0.0) != (same_submap_rotation_rad > 0.0))) {
+    return Status::Error(
+        "sequence_consistency same_submap_translation_m / same_submap_rotation_rad must be "
+        ">= 0, both 0 (off) or both > 0");
   }
   return Status::Ok();
 }
@@ -309,6 +317,39 @@ class PairRegistrar {
   std::set<Key> featured_;  // prepared with FPFH features
   std::set<Key> charged_;
 };
+
+// Rejects the accepted loops that place their current submap apart from all its other loops
+// while two of those agree (see same_submap_translation_m). Each loop places the submap by its
+// history submap's pose in the map.
+void RejectOddLoopsOfOneSubmap(const MapContents& history,
+                               const SequenceConsistencyConfig& consistency,
+                               InterSessionMatchResult* result) {
+  if (consistency.same_submap_translation_m <= 0.0) return;
+  SubmapPlacements placements;
+  for (const InterSessionLoop& loop : result->loops) {
+    SubmapPlacement placement;
+    placement.current_submap = loop.current_submap;
+    placement.T_map_current =
+        history.submaps[loop.history_index].T_map_submap * loop.T_history_current;
+    placements.push_back(placement);
+  }
+  const std::vector<std::size_t> odd = OddPlacementsOfOneSubmap(
+      placements, consistency.same_submap_translation_m, consistency.same_submap_rotation_rad);
+  for (auto it = odd.rbegin(); it != odd.rend(); ++it) {  // erase from the back
+    const InterSessionLoop& loop = result->loops[*it];
+    const Submap& target = history.submaps[loop.history_index];
+    for (LoopRecord& record : result->records) {
+      if (record.status == LoopStatus::kAccepted && record.current_submap == loop.current_submap &&
+          record.history_session == target.session &&
+          record.history_submap == static_cast<std::int64_t>(target.id)) {
+        record.status = LoopStatus::kRejected;
+        record.reason =
+            "places its submap apart from every other loop of it, which agree with each other";
+      }
+    }
+    result->loops.erase(result->loops.begin() + static_cast<std::ptrdiff_t>(*it));
+  }
+}
 
 // Sequence consistency: which registered loops are accepted (in the result's loops and
 // records; the others' records are rejected with the reason) and T_map_session.
@@ -797,6 +838,7 @@ StatusOr<InterSessionMatchResult> InterSessionMatcher::Match(
   if (result.aligned && config_.sequence.max_gap_submaps > 0) {
     MatchBySequence(config_, history, current, registered, in_group, &registrar, &result);
   }
+  RejectOddLoopsOfOneSubmap(history, config_.consistency, &result);
   result.history_targets = registrar.HistoryTargets();
   return result;
 }

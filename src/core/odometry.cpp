@@ -90,9 +90,10 @@ Status OdometryConfig::Validate() const {
         "odometry.judge_convergence_translation_m / judge_convergence_rotation_rad must be >= 0 "
         "and judge_max_iterations >= 1");
   }
-  if (velocity_window_scans < 1) {
-    return Status::Error("odometry.velocity_window_scans must be >= 1, got " +
-                         std::to_string(velocity_window_scans));
+  if (velocity_window_scans < 1 || rotation_window_scans < 1) {
+    return Status::Error("odometry.velocity_window_scans and rotation_window_scans must be >= 1, "
+                         "got " + std::to_string(velocity_window_scans) + " and " +
+                         std::to_string(rotation_window_scans));
   }
   if (!std::isfinite(max_scan_gap_s) || max_scan_gap_s <= 0.0) {
     return Status::Error("odometry.max_scan_gap_s must be > 0, got " +
@@ -384,7 +385,8 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     recent_weights_.clear();
   }
   recent_.push_back(stamped);
-  while (recent_.size() > static_cast<std::size_t>(config_.velocity_window_scans)) {
+  while (recent_.size() > static_cast<std::size_t>(std::max(config_.velocity_window_scans,
+                                                               config_.rotation_window_scans))) {
     recent_.pop_front();
   }
   if (result.registered) recent_weights_.push_back(result.icp.mean_weight);
@@ -424,17 +426,21 @@ std::optional<double> Odometry::RecentWeightMedian() const {
 // e_{k+1} ~ -(e_k - e_{k-1}) / 2, whose characteristic roots are 0.5 and -1, an oscillation
 // that never decays. Over n intervals it is e_{k+1} ~ -(e_k - e_{k-n}) / (2n), stable for
 // n >= 2. A constant twist has the same body-frame coordinates along the whole motion, so the
-// mean over the window needs no change of frame. The rotation rate is the last interval's
-// unless window_rotation (see the config).
+// mean over the window needs no change of frame. The rotation rate has a window of its own
+// (rotation_window_scans, see the config).
 se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) const {
   if (recent_.empty()) return se3::Vector6d::Zero();
-  const StampedPose& oldest = recent_.front();
-  se3::Vector6d velocity = Deskewer::VelocityFromMotion(se3::Between(oldest.pose, estimate),
-                                                        stamp_s - oldest.stamp_s);
-  if (config_.window_rotation) return velocity;
-  const StampedPose& newest = recent_.back();
-  velocity.tail<3>() = Deskewer::VelocityFromMotion(se3::Between(newest.pose, estimate),
-                                                    stamp_s - newest.stamp_s)
+  // The pose `intervals` scans before this one (or the oldest kept).
+  const auto back = [&](int intervals) -> const StampedPose& {
+    const std::size_t n = std::min(recent_.size(), static_cast<std::size_t>(intervals));
+    return recent_[recent_.size() - n];
+  };
+  const StampedPose& translation_from = back(config_.velocity_window_scans);
+  se3::Vector6d velocity = Deskewer::VelocityFromMotion(
+      se3::Between(translation_from.pose, estimate), stamp_s - translation_from.stamp_s);
+  const StampedPose& rotation_from = back(config_.rotation_window_scans);
+  velocity.tail<3>() = Deskewer::VelocityFromMotion(se3::Between(rotation_from.pose, estimate),
+                                                    stamp_s - rotation_from.stamp_s)
                            .tail<3>();
   return velocity;
 }

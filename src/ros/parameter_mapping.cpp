@@ -83,6 +83,10 @@ namespace ros_params {
     g.matching.consistency.secondary_translation_per_m)                                       \
   F(inter_session_consistency_secondary_rotation_per_m,                                       \
     g.matching.consistency.secondary_rotation_per_m)                                          \
+  F(inter_session_consistency_same_submap_translation_m,                                      \
+    g.matching.consistency.same_submap_translation_m)                                         \
+  F(inter_session_consistency_same_submap_rotation_rad,                                       \
+    g.matching.consistency.same_submap_rotation_rad)                                          \
   F(inter_session_sequence_max_gap_submaps, g.matching.sequence.max_gap_submaps)              \
   F(inter_session_sequence_chain, g.matching.sequence.chain)                                  \
   F(inter_session_sequence_max_candidates, g.matching.sequence.max_candidates)                \

@@ -59,6 +59,14 @@ struct SequenceConsistencyConfig {
   int min_secondary_submaps = 2;
   double secondary_translation_per_m = 0.05;
   double secondary_rotation_per_m = 0.0005;
+  /// Loops of one current submap place that submap alike up to the error of the history
+  /// poses (no drift of this session between them), tighter than the bounds above. Of a
+  /// submap's accepted loops, one that disagrees beyond `same_submap_translation_m` [m] (where
+  /// each puts the submap's origin) or `same_submap_rotation_rad` [rad] with every other,
+  /// while at least two others agree with each other, is rejected (OddPlacementsOfOneSubmap,
+  /// submap_loop_agreement.h, with the measurements behind the defaults). 0 / 0: off.
+  double same_submap_translation_m = 0.2;
+  double same_submap_rotation_rad = 0.006;
 
   Status Validate() const;
 };

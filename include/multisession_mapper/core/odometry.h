@@ -123,12 +123,23 @@ struct OdometryConfig {
   /// per 100 m along it; odometry ATE from the first pose 7.8 m, with the window 3.1 m).
   /// Over 3 intervals it decays (see odometry.cpp).
   int velocity_window_scans = 3;
-  /// true: the rotation rate is averaged over the window too; false: only the translation
-  /// velocity is, the rotation rate is the last interval's. Rotation is well observed, and a
-  /// turn that starts must not be de-skewed with a lagging yaw rate. Measured (odometry ATE
-  /// from the first pose, seed 1): `small` s00 (3 m/s) 0.19 m with false, 0.53 m with true,
-  /// 0.26 m without window; `campus` s00 (1.8 m/s) 3.05 m with false, 2.30 m with true.
-  bool window_rotation = false;
+  /// The rotation rate of the motion model is the mean over the last this many stamp
+  /// intervals (1: the last interval's). With the last interval only, a weakly observed yaw
+  /// feeds its own noise back: the predicted yaw is 2 e_k - e_{k-1} for yaw errors e, which a
+  /// scan that pulls the yaw back only a little (a gain g) follows as a lightly damped
+  /// oscillation (|root| = sqrt(1 - g)), and the local map built along it holds it up. Campus
+  /// s02 before the turn at 112 s (a parking lot), seeds 1 and 3: the yaw swung +-0.8 deg with a
+  /// 1.6 s period, growing until the turn, which it left 0.25 deg off (seed 1 s02 map-fit ATE
+  /// 0.131 m). Over 3 intervals a turn's start lags (the turn hypotheses and the prior's
+  /// release catch it), over 2 one turn of seed 1 s02 (239 s) was lost by 4 deg. Measured in
+  /// session 41, 3-session maps, map-fit ATE s00 / s01 / s02 with 1 -> 3: campus seed 1
+  /// 0.067 / 0.070 / 0.131 -> 0.056 / 0.051 / 0.097 m (RPE 100 m 0.43 -> 0.20 % on s02), seed 3
+  /// 0.049 / 0.079 / 0.049 -> 0.052 / 0.080 / 0.051 m, seed 2 0.025 / 0.028 / 0.023 -> 0.030 /
+  /// 0.030 / 0.023 m, seed 4 (never tuned on) 0.039 / 0.037 / 0.045 -> 0.044 / 0.036 / 0.044 m;
+  /// `small` (3 m/s, sharp turns) seed 1 0.035 / 0.030 / 0.034 -> 0.033 / 0.035 / 0.038 m, seed
+  /// 2 0.046 / 0.031 / 0.039 -> 0.043 / 0.039 / 0.038 m. Session 10 (before the turn hypotheses
+  /// and the motion prior): `small` s00 odometry 0.19 m with 1, 0.53 m with 3.
+  int rotation_window_scans = 3;
   /// Weight of the constant-velocity prediction's position as a prior of the scan's ICP
   /// (IcpTranslationPrior; rotation free), in weighted point pairs (a pair whose plane normal
   /// lies along a direction adds up to 1 to the Hessian there). 0: none. Directions the pairs
@@ -320,9 +331,11 @@ class Odometry {
   IcpRegistration judge_icp_;
   AdaptiveThreshold threshold_;
   Pose3 pose_;
-  /// Mean twist over the poses in recent_ (velocity_window_scans intervals at most).
+  /// Mean twist over the poses in recent_: the translation over velocity_window_scans
+  /// intervals at most, the rotation over rotation_window_scans.
   se3::Vector6d velocity_ = se3::Vector6d::Zero();
-  /// The last velocity_window_scans poses since the last gap, oldest first.
+  /// The last max(velocity_window_scans, rotation_window_scans) poses since the last gap,
+  /// oldest first.
   std::deque<StampedPose, Eigen::aligned_allocator<StampedPose>> recent_;
   /// Mean kernel weights of the last turn_hypothesis_window_scans registered scans since the
   /// last gap, oldest first.
