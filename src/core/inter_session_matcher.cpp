@@ -320,7 +320,9 @@ class PairRegistrar {
 
 // Rejects the accepted loops that place their current submap apart from all its other loops
 // while two of those agree (see same_submap_translation_m). Each loop places the submap by its
-// history submap's pose in the map.
+// history submap's pose in the map. It runs once on the loops of every stage (registration
+// without guess, guided, sequence guidance); RegisterAgainstReferences's own check of one
+// submap's registrations sees only one stage's and compares them under the wider group bounds.
 void RejectOddLoopsOfOneSubmap(const MapContents& history,
                                const SequenceConsistencyConfig& consistency,
                                InterSessionMatchResult* result) {
@@ -481,7 +483,8 @@ RegisteredLoops RegisterAgainstReferences(
   // that grow with the distance to the reference), only those agreeing with the one nearest
   // its reference stay. Campus seed 2, s01/25 placed by its neighbour: s00/42 1.49 deg and
   // s00/43 0.13 deg from the truth, both within the 1.38 deg that 20 m between the two
-  // submaps allows.
+  // submaps allows. (RejectOddLoopsOfOneSubmap later holds all the accepted loops of a submap
+  // to the tighter same-submap bounds where a majority of them agree.)
   std::map<std::size_t, std::size_t> nearest;  // current submap -> index into `registered`
   std::vector<double> discrepancy(registered.size(), 0.0);
   for (std::size_t j = 0; j < registered.size(); ++j) {
