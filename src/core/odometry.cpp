@@ -438,6 +438,8 @@ se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) co
   const StampedPose& translation_from = back(config_.velocity_window_scans);
   se3::Vector6d velocity = Deskewer::VelocityFromMotion(
       se3::Between(translation_from.pose, estimate), stamp_s - translation_from.stamp_s);
+  // The same window for both (the defaults): that motion's rotation rate already.
+  if (config_.rotation_window_scans == config_.velocity_window_scans) return velocity;
   const StampedPose& rotation_from = back(config_.rotation_window_scans);
   velocity.tail<3>() = Deskewer::VelocityFromMotion(se3::Between(rotation_from.pose, estimate),
                                                     stamp_s - rotation_from.stamp_s)
