@@ -54,6 +54,16 @@ MapContents MakeMap(int sessions, int seed) {
         trajectory.push_back(sp);
       }
       for (int p = 0; p < 500; ++p) submap.points.emplace_back(u(rng), u(rng), u(rng) * 0.1);
+      if (s == 0) {  // the first session records its points' views, the second does not
+        for (int p = 0; p < 500; ++p) {
+          PointViews v;
+          if (p % 7 != 0) {  // every 7th unknown (e.g. a point a merge added)
+            v.nearest_scan = static_cast<std::uint32_t>(p % 10);
+            v.last_scan = static_cast<std::uint32_t>((p / 10) % 10);
+          }
+          submap.views.push_back(v);
+        }
+      }
       submap.length_m = 4.5;
       map.graph.SetNodePose(node, submap.T_map_submap);
       if (node == 0) map.graph.SetFixed(0, true);
@@ -90,6 +100,11 @@ void ExpectSameMap(const MapContents& a, const MapContents& b) {
       // PCD stores float32.
       EXPECT_LT((a.submaps[i].points[p] - b.submaps[i].points[p]).norm(), 1e-5);
     }
+    ASSERT_EQ(a.submaps[i].views.size(), b.submaps[i].views.size());
+    for (std::size_t p = 0; p < a.submaps[i].views.size(); ++p) {
+      EXPECT_EQ(a.submaps[i].views[p].nearest_scan, b.submaps[i].views[p].nearest_scan);
+      EXPECT_EQ(a.submaps[i].views[p].last_scan, b.submaps[i].views[p].last_scan);
+    }
     ASSERT_EQ(a.submaps[i].scans.size(), b.submaps[i].scans.size());
     for (std::size_t k = 0; k < a.submaps[i].scans.size(); ++k) {
       EXPECT_NEAR(a.submaps[i].scans[k].stamp_s, b.submaps[i].scans[k].stamp_s, 1e-6);
@@ -114,6 +129,31 @@ TEST(MapStore, RoundTrip) {
   EXPECT_TRUE(fs::exists(fs::path(dir) / "loops/s00.csv"));
   EXPECT_FALSE(fs::exists(dir + ".new"));
   EXPECT_FALSE(fs::exists(dir + ".old"));
+}
+
+TEST(MapStore, RoundTripKeepsTheViewsOfEachPoint) {
+  const MapContents map = MakeMap(2, 3);
+  ASSERT_EQ(map.submaps[0].views.size(), map.submaps[0].points.size());
+  ASSERT_TRUE(map.submaps[3].views.empty());
+  const std::string dir = TempDir("views");
+  ASSERT_TRUE(MapStore().Save(map, dir).ok());
+  StatusOr<MapContents> loaded = MapStore().Load(dir);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  ExpectSameMap(map, loaded.value());  // views included, unknown ones too
+  EXPECT_TRUE(loaded.value().submaps[3].views.empty());
+}
+
+TEST(MapStore, ViewOfAScanTheSubmapDoesNotHaveNamesTheFile) {
+  MapContents map = MakeMap(1, 5);
+  map.submaps[2].views[17].last_scan = 10;  // the submap has scans 0 .. 9
+  const std::string dir = TempDir("bad_view");
+  ASSERT_TRUE(MapStore().Save(map, dir).ok());
+  StatusOr<MapContents> loaded = MapStore().Load(dir);
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_NE(loaded.status().message().find("submaps/s00/2.pcd"), std::string::npos)
+      << loaded.status().message();
+  EXPECT_NE(loaded.status().message().find("scan index 10"), std::string::npos)
+      << loaded.status().message();
 }
 
 TEST(MapStore, UnchangedSubmapsAreHardLinkedAndExtraFilesCarriedOver) {

@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 #include <random>
+#include <set>
 #include <tuple>
 #include <vector>
 
@@ -196,7 +197,7 @@ TEST(SubmapBuilder, ParkedCarIsKept) {
 // hit, every in-range point summed in scan order: a plain reference against the builder's
 // prefetching look-ups (runs of one voxel, voxels revisited out of order, scans of 0 to
 // 40 points around the look-up's lag, points out of range and not finite).
-TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrder) {
+TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrderWithTheirViews) {
   SubmapBuilderConfig config;
   config.dynamic_filter.enabled = false;
   config.voxel_size_m = 0.5;
@@ -208,6 +209,8 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrder) {
   std::uniform_int_distribution<int> run(1, 4);
   std::vector<VoxelKey> first_hit;
   std::map<std::tuple<int, int, int>, std::pair<Eigen::Vector3d, int>> sums;
+  // Per voxel: the scan of its nearest point (the first on ties) and its last scan.
+  std::map<std::tuple<int, int, int>, std::pair<double, PointViews>> views;
   const Pose3 T_odom_sensor = se3::FromXyzRpy(0.3, -0.2, 0.1, 0.0, 0.0, 0.4);
   for (int k = 0; k < 60; ++k) {
     LidarScan scan;
@@ -236,6 +239,12 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrder) {
       }
       sum.first += in_submap;
       ++sum.second;
+      auto& view = views[{key.x(), key.y(), key.z()}];
+      if (sum.second == 1 || static_cast<float>(q.squaredNorm()) < view.first) {
+        view.first = static_cast<float>(q.squaredNorm());
+        view.second.nearest_scan = static_cast<std::uint32_t>(k);
+      }
+      view.second.last_scan = static_cast<std::uint32_t>(k);
     }
   }
   builder.value().FinishSession();
@@ -247,6 +256,16 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrder) {
     const Eigen::Vector3d expected = sum.first / sum.second;
     ASSERT_EQ(submaps[0].points[i], expected) << "voxel " << i;
   }
+  ASSERT_EQ(submaps[0].views.size(), first_hit.size());
+  ASSERT_EQ(submaps[0].scans.size(), 60u);
+  std::set<std::uint32_t> nearest_scans;
+  for (std::size_t i = 0; i < first_hit.size(); ++i) {
+    const PointViews& expected = views[{first_hit[i].x(), first_hit[i].y(), first_hit[i].z()}].second;
+    EXPECT_EQ(submaps[0].views[i].nearest_scan, expected.nearest_scan) << "voxel " << i;
+    EXPECT_EQ(submaps[0].views[i].last_scan, expected.last_scan) << "voxel " << i;
+    nearest_scans.insert(expected.nearest_scan);
+  }
+  EXPECT_GT(nearest_scans.size(), 20u);  // the views differ from voxel to voxel
 }
 
 TEST(SubmapBuilder, SplitsOnTranslationAndRotationThresholds) {

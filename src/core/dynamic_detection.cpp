@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <utility>
 
 #include "multisession_mapper/core/local_plane.h"
@@ -42,6 +43,8 @@ Status CheckPositive(const std::string& name, double value) {
 struct Side {
   PointVector points;
   PointVector origins;  // thinned sensor origins
+  PointVector scan_origins;        // every scan's origin, by scan index (with views only)
+  std::vector<PointViews> views;   // per point, or empty: rays from the nearest origins
   std::vector<std::uint8_t> common;
   std::vector<std::uint8_t> far;  // beyond max_range_m of the other session (the far band)
   std::vector<float> nearest_other_m;  // distance to the nearest point of the other submap
@@ -161,7 +164,10 @@ class PairDetection {
  public:
   PairDetection(const DynamicDetectionConfig& config, Side* sides, const FrameIndex& history,
                 const FrameIndex& current)
-      : config_(config), sides_(sides), indices_{&history, &current} {}
+      : config_(config),
+        sides_(sides),
+        indices_{&history, &current},
+        min_pass_sin_(static_cast<float>(std::sin(config.min_pass_incidence_rad))) {}
 
   // Steps 1-2: seeds and region growing of the common parts.
   void FindCommonParts() {
@@ -288,7 +294,13 @@ class PairDetection {
           coarse_->Touch(coarse_->KeyOf(grid_->CentreOf(key)))->flags |= flags;
         };
         const Eigen::Vector3i point_key = grid_->KeyOf(side.points[i]);
-        query(point_key, grid_->Find(point_key));
+        RayVoxelGrid::Cell* point_cell = grid_->Find(point_key);
+        query(point_key, point_cell);
+        Eigen::Vector3f normal;
+        if (config_.min_pass_incidence_rad > 0.0 &&
+            Normal(s, static_cast<std::uint32_t>(i), &normal)) {
+          pass_normals_[s].emplace(point_cell, normal);  // the voxel's first planar point
+        }
         // The free column below (only for points that can become dynamic).
         if (side.common[i]) continue;
         ForFreeColumn(s, i, [&](const Eigen::Vector3i& key) {
@@ -359,7 +371,9 @@ class PairDetection {
       const bool grounded =
           config_.max_object_bottom_m == 0.0 || bottom_m <= config_.max_object_bottom_m;
       if (static_cast<int>(cluster.size()) >= config_.min_cluster_points &&
-          coarse >= config_.min_cluster_coarse_points && grounded &&
+          coarse >= config_.min_cluster_coarse_points &&
+          coarse >= config_.min_cluster_coarse_fraction * static_cast<double>(cluster.size()) &&
+          grounded &&
           (!TouchesFarBand(side, cluster) || WholeObjectIsMovable(s, cluster))) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
         if (config_.bottom_extension_radius_m > 0.0) ExtendDown(s, cluster, &visited, &dynamic);
@@ -733,6 +747,16 @@ class PairDetection {
            nullptr);
   }
 
+  // Whether a ray of side s (unit direction) meets the plane of the other side's point that
+  // queried `cell` at less than min_pass_incidence_rad (see the config).
+  bool Grazing(int s, const RayVoxelGrid::Cell* cell, const Eigen::Vector3f& direction) const {
+    const auto& normals = pass_normals_[1 - s];
+    if (normals.empty()) return false;
+    const auto it = normals.find(cell);
+    return it != normals.end() && std::abs(it->second.dot(direction)) < min_pass_sin_;
+  }
+
+  static constexpr std::uint32_t kScanBit = 0x80000000u;
   // Rays from the thinned origins of side s to its points; counts the passes through voxels
   // queried by the other side. A ray blocked by its own session's occupied voxel is dropped.
   void CastSide(int s) {
@@ -746,17 +770,33 @@ class PairDetection {
     const double origin_clearance_m = config_.voxel_size_m;
     std::vector<std::pair<double, std::uint32_t>> nearest;
     std::vector<RayVoxelGrid::Cell*> passed;
+    const bool by_views = config_.rays_from_viewing_scans && !side.views.empty();
     for (std::size_t i = 0; i < side.points.size(); ++i) {
       const Eigen::Vector3d& p = side.points[i];
       nearest.clear();
-      for (std::size_t o = 0; o < side.origins.size(); ++o) {
-        const double d2 = (side.origins[o] - p).squaredNorm();
-        if (d2 <= max_len_sq) nearest.emplace_back(d2, static_cast<std::uint32_t>(o));
+      const PointViews* views = by_views ? &side.views[i] : nullptr;
+      if (views != nullptr && views->nearest_scan < side.scan_origins.size() &&
+          views->last_scan < side.scan_origins.size()) {
+        // Rays to the scans that measured the point (indices into scan_origins, marked by
+        // the top bit so that the loop below picks the right list).
+        for (std::uint32_t scan : {views->nearest_scan, views->last_scan}) {
+          const double d2 = (side.scan_origins[scan] - p).squaredNorm();
+          if (d2 <= max_len_sq && (nearest.empty() || scan != views->nearest_scan)) {
+            nearest.emplace_back(d2, scan | kScanBit);
+          }
+        }
+      } else {
+        for (std::size_t o = 0; o < side.origins.size(); ++o) {
+          const double d2 = (side.origins[o] - p).squaredNorm();
+          if (d2 <= max_len_sq) nearest.emplace_back(d2, static_cast<std::uint32_t>(o));
+        }
       }
       const std::size_t rays = std::min(k, nearest.size());
       std::partial_sort(nearest.begin(), nearest.begin() + rays, nearest.end());
       for (std::size_t r = 0; r < rays; ++r) {
-        const Eigen::Vector3d& o = side.origins[nearest[r].second];
+        const std::uint32_t which = nearest[r].second;
+        const Eigen::Vector3d& o = (which & kScanBit) ? side.scan_origins[which & ~kScanBit]
+                                                      : side.origins[which];
         const double length = std::sqrt(nearest[r].first);
         double margin = config_.end_margin_m;
         if (side.height_m[i] < config_.ground_tolerance_m && length > 0.0) {
@@ -784,6 +824,7 @@ class PairDetection {
         // voxel blocks when the ray enters it (coming from the origin) beyond the clearance,
         // that is where the backward walk leaves it; the voxel of the origin never blocks.
         const Eigen::Vector3d end = o + (p - o) * (free_until / length);
+        const Eigen::Vector3f direction = ((p - o) / length).cast<float>();
         bool previous_own = false;
         grid_->Traverse(end, o, [&](RayVoxelGrid::Cell* cell, double back_m) {
           if (previous_own && free_until - back_m > origin_clearance_m) {
@@ -795,7 +836,9 @@ class PairDetection {
           // the points within max_range_m get the evidence they got without it.
           const std::uint8_t wanted =
               free_until - back_m > config_.max_range_m ? query_far : query;
-          if (cell != nullptr && (cell->flags & wanted)) passed.push_back(cell);
+          if (cell != nullptr && (cell->flags & wanted) && !Grazing(s, cell, direction)) {
+            passed.push_back(cell);
+          }
           return true;
         });
         if (blocked) continue;
@@ -821,6 +864,9 @@ class PairDetection {
   };
   VoxelMap<VoxelPlane> voxel_planes_[2];
   std::vector<std::uint8_t> object_mark_[2];  // scratch marks of WholeObjectIsMovable
+  // Per side: normal of the planar point that queried a voxel (min_pass_incidence_rad).
+  std::unordered_map<const RayVoxelGrid::Cell*, Eigen::Vector3f> pass_normals_[2];
+  float min_pass_sin_ = 0.0f;
 };
 
 }  // namespace
@@ -857,6 +903,13 @@ Status DynamicDetectionConfig::Validate() const {
         {"changed_surface_distance_m", changed_surface_distance_m}}) {
     const Status status = CheckPositive(name, value);
     if (!status.ok()) return status;
+  }
+  if (!(min_cluster_coarse_fraction >= 0.0 && min_cluster_coarse_fraction <= 1.0)) {
+    return Status::Error("dynamic_detection.min_cluster_coarse_fraction must be in [0, 1]");
+  }
+  if (!std::isfinite(min_pass_incidence_rad) || min_pass_incidence_rad < 0.0 ||
+      min_pass_incidence_rad > M_PI / 2) {
+    return Status::Error("dynamic_detection.min_pass_incidence_rad must be in [0, pi/2]");
   }
   if (!std::isfinite(grow_max_normal_angle_rad) || grow_max_normal_angle_rad < 0.0 ||
       grow_max_normal_angle_rad > M_PI / 2) {
@@ -1021,6 +1074,17 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   sides[kCurrent].points = current.points;
   sides[kHistory].origins = ThinOrigins(history, T_current_history, config_.origin_spacing_m);
   sides[kCurrent].origins = ThinOrigins(current, Pose3::Identity(), config_.origin_spacing_m);
+  if (config_.rays_from_viewing_scans) {
+    for (int s : {kHistory, kCurrent}) {
+      const Submap& submap = s == kHistory ? history : current;
+      if (submap.views.size() != submap.points.size()) continue;
+      const Pose3 T = s == kHistory ? T_current_history : Pose3::Identity();
+      sides[s].views = submap.views;
+      for (const SubmapScanRecord& scan : submap.scans) {
+        sides[s].scan_origins.push_back(T * scan.T_submap_sensor.translation());
+      }
+    }
+  }
 
   DynamicDetectionResult::StageTimes& stage = result.stage;
   auto lap = std::chrono::steady_clock::now();

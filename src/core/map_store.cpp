@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +20,20 @@
 #include "multisession_mapper/core/checksum.h"
 #include "multisession_mapper/core/se3.h"
 #include "multisession_mapper/core/trajectory_io.h"
+
+
+// A submap point with the scans that measured it (Submap::views), as stored in the submap's
+// PCD file (extra fields nearest_scan and last_scan; viewers show x, y, z as usual).
+struct EIGEN_ALIGN16 MsmPointWithViews {
+  PCL_ADD_POINT4D;
+  std::uint32_t nearest_scan;
+  std::uint32_t last_scan;
+  PCL_MAKE_ALIGNED_OPERATOR_NEW
+};
+POINT_CLOUD_REGISTER_POINT_STRUCT(MsmPointWithViews,
+                                  (float, x, x)(float, y, y)(float, z, z)
+                                  (std::uint32_t, nearest_scan, nearest_scan)
+                                  (std::uint32_t, last_scan, last_scan))
 
 namespace multisession_mapper {
 namespace core {
@@ -123,25 +138,39 @@ bool SafeRelativePath(const std::string& path) {
   return true;
 }
 
-Status WritePcd(const fs::path& path, const PointVector& points) {
-  pcl::PointCloud<pcl::PointXYZ> cloud;
-  cloud.reserve(points.size());
-  for (const Eigen::Vector3d& p : points) {
-    cloud.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
-                                  static_cast<float>(p.z())));
-  }
+Status WritePcd(const fs::path& path, const PointVector& points,
+                const std::vector<PointViews>* views = nullptr) {
   std::error_code ec;
   fs::create_directories(path.parent_path(), ec);
-  if (cloud.empty()) {
+  if (points.empty()) {
     // PCL refuses to write empty clouds; an empty ASCII PCD is still a valid PCD.
     return WriteDurably(path,
                         "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
                         "COUNT 1 1 1\nWIDTH 0\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 0\n"
                         "DATA ascii\n");
   }
-  if (pcl::io::savePCDFileBinaryCompressed(path.string(), cloud) != 0) {
-    return Status::Error("cannot write '" + path.string() + "'");
+  int written = 0;
+  if (views != nullptr && views->size() == points.size()) {
+    pcl::PointCloud<MsmPointWithViews> cloud;
+    cloud.resize(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      cloud[i].x = static_cast<float>(points[i].x());
+      cloud[i].y = static_cast<float>(points[i].y());
+      cloud[i].z = static_cast<float>(points[i].z());
+      cloud[i].nearest_scan = (*views)[i].nearest_scan;
+      cloud[i].last_scan = (*views)[i].last_scan;
+    }
+    written = pcl::io::savePCDFileBinaryCompressed(path.string(), cloud);
+  } else {
+    pcl::PointCloud<pcl::PointXYZ> cloud;
+    cloud.reserve(points.size());
+    for (const Eigen::Vector3d& p : points) {
+      cloud.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                                    static_cast<float>(p.z())));
+    }
+    written = pcl::io::savePCDFileBinaryCompressed(path.string(), cloud);
   }
+  if (written != 0) return Status::Error("cannot write '" + path.string() + "'");
   return FsyncPath(path, false);
 }
 
@@ -151,7 +180,8 @@ Status WritePcd(const fs::path& path, const PointVector& points) {
 // PCDReader::read, test map_store_fuzz_regression_test). We keep PCL for the parsing (ascii,
 // binary, LZF-compressed binary) and refuse here whatever it would have to trust: a missing or
 // inconsistent header, sizes that do not add up, data shorter than the header promises.
-Status ValidatePcd(const std::string& bytes, const std::string& name, std::uint64_t* num_points) {
+Status ValidatePcd(const std::string& bytes, const std::string& name, std::uint64_t* num_points,
+                   std::vector<std::string>* fields_out = nullptr) {
   const auto error = [&](const std::string& what) {
     return Status::Error("corrupt point cloud '" + name + "': " + what);
   };
@@ -233,6 +263,7 @@ Status ValidatePcd(const std::string& bytes, const std::string& name, std::uint6
     point_values += count;
   }
   if (xyz != 3) return error("needs the fields x, y and z once each");
+  if (fields_out != nullptr) *fields_out = fields;
   if (!has_width || !has_height || !has_points) return error("WIDTH, HEIGHT or POINTS missing");
   if (width > kMaxPoints || height > kMaxPoints || width * height != points || points > kMaxPoints) {
     return error("POINTS is not WIDTH x HEIGHT");
@@ -260,27 +291,54 @@ Status ValidatePcd(const std::string& bytes, const std::string& name, std::uint6
   return Status::Ok();
 }
 
-StatusOr<PointVector> ReadPcd(const fs::path& path) {
+// Reads a point cloud; with `views`, also the submap's per-point views when the file has
+// them (fields nearest_scan and last_scan), else `views` is left empty.
+StatusOr<PointVector> ReadPcd(const fs::path& path, std::vector<PointViews>* views = nullptr) {
   StatusOr<std::string> bytes = ReadWholeFile(path);
   if (!bytes.ok()) return bytes.status();
   std::uint64_t num_points = 0;
-  Status valid = ValidatePcd(bytes.value(), path.string(), &num_points);
+  std::vector<std::string> fields;
+  Status valid = ValidatePcd(bytes.value(), path.string(), &num_points, &fields);
   if (!valid.ok()) return valid;
+  if (views != nullptr) views->clear();
   // Fused submaps and empty change clouds have no points; PCL's reader would print a warning
   // ("No points to read") for each of them.
   if (num_points == 0) return PointVector();
-  pcl::PointCloud<pcl::PointXYZ> cloud;
+  const auto has = [&](const char* name) {
+    return std::find(fields.begin(), fields.end(), name) != fields.end();
+  };
+  PointVector points;
+  const auto add = [&](const auto& p) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) return false;
+    points.emplace_back(p.x, p.y, p.z);
+    return true;
+  };
+  const Status non_finite =
+      Status::Error("point cloud '" + path.string() + "' has non-finite points");
   pcl::PCDReader reader;
+  if (views != nullptr && has("nearest_scan") && has("last_scan")) {
+    pcl::PointCloud<MsmPointWithViews> cloud;
+    if (reader.read(path.string(), cloud) < 0) {
+      return Status::Error("corrupt or unreadable point cloud '" + path.string() + "'");
+    }
+    points.reserve(cloud.size());
+    views->reserve(cloud.size());
+    for (const auto& p : cloud) {
+      if (!add(p)) return non_finite;
+      PointViews v;
+      v.nearest_scan = p.nearest_scan;
+      v.last_scan = p.last_scan;
+      views->push_back(v);
+    }
+    return points;
+  }
+  pcl::PointCloud<pcl::PointXYZ> cloud;
   if (reader.read(path.string(), cloud) < 0) {
     return Status::Error("corrupt or unreadable point cloud '" + path.string() + "'");
   }
-  PointVector points;
   points.reserve(cloud.size());
   for (const auto& p : cloud) {
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-      return Status::Error("point cloud '" + path.string() + "' has non-finite points");
-    }
-    points.emplace_back(p.x, p.y, p.z);
+    if (!add(p)) return non_finite;
   }
   return points;
 }
@@ -393,7 +451,7 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
       }
     }
     if (!linked) {
-      Status s = WritePcd(target, submap.points);
+      Status s = WritePcd(target, submap.points, &submap.views);
       if (!s.ok()) return s;
     }
     written.push_back(rel);
@@ -621,9 +679,19 @@ StatusOr<MapContents> MapStore::Load(const std::string& dir) const {
       }
       const std::string rel = SubmapFile(submap);
       if (!listed(rel)) return Status::Error(what + ": its file '" + rel + "' is not listed");
-      StatusOr<PointVector> points = ReadPcd(root / rel);
+      StatusOr<PointVector> points = ReadPcd(root / rel, &submap.views);
       if (!points.ok()) return points.status();
       submap.points = std::move(points.value());
+      for (const PointViews& v : submap.views) {
+        for (std::uint32_t scan : {v.nearest_scan, v.last_scan}) {
+          if (scan != PointViews::kUnknownScan && scan >= submap.scans.size()) {
+            return Status::Error("corrupt point cloud '" + (root / rel).string() +
+                                 "': a point's scan index " + std::to_string(scan) +
+                                 " exceeds the submap's " + std::to_string(submap.scans.size()) +
+                                 " scans");
+          }
+        }
+      }
       contents.clean_submaps.insert(SubmapKey(submap.session, submap.id));
       contents.submaps.push_back(std::move(submap));
     }

@@ -82,6 +82,14 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
       {"in_session_dynamics", "angular_uncertainty_rad", &d.range_image.angular_uncertainty_rad},
       {"in_session_dynamics", "check_threads", &d.check_threads},
+      {"intra_session_pairs", "enabled", &s.intra_pairs.enabled},
+      {"intra_session_pairs", "neighbours", &s.intra_pairs.neighbours},
+      {"intra_session_pairs", "max_dynamic_fraction", &s.intra_pairs.max_dynamic_fraction},
+      {"intra_session_pairs", "num_threads", &s.intra_pairs.num_threads},
+      {"intra_session_pairs", "rays_from_viewing_scans", &s.intra_pairs.rays_from_viewing_scans},
+      {"intra_session_pairs", "min_pass_incidence_rad", &s.intra_pairs.min_pass_incidence_rad},
+      {"intra_session_pairs", "min_cluster_coarse_fraction",
+       &s.intra_pairs.min_cluster_coarse_fraction},
       {"intra_loops", "enabled", &s.intra_loops.enabled},
       {"intra_loops", "search_radius_m", &s.intra_loops.search_radius_m},
       {"intra_loops", "min_id_gap", &s.intra_loops.min_id_gap},
@@ -166,6 +174,9 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "guard_object_height_m", &m.dynamics.guard_object_height_m},
       {"low_dynamics", "max_object_bottom_m", &m.dynamics.max_object_bottom_m},
       {"low_dynamics", "far_range_m", &m.dynamics.far_range_m},
+      {"low_dynamics", "rays_from_viewing_scans", &m.dynamics.rays_from_viewing_scans},
+      {"low_dynamics", "min_pass_incidence_rad", &m.dynamics.min_pass_incidence_rad},
+      {"low_dynamics", "min_cluster_coarse_fraction", &m.dynamics.min_cluster_coarse_fraction},
       {"low_dynamics", "bottom_extension_radius_m", &m.dynamics.bottom_extension_radius_m},
       {"low_dynamics", "bottom_min_height_m", &m.dynamics.bottom_min_height_m},
       {"low_dynamics", "bottom_max_drop_m", &m.dynamics.bottom_max_drop_m},
@@ -232,6 +243,8 @@ StatusOr<PipelineConfig> PipelineConfigFromYaml(const std::string& yaml_text,
   } catch (const YAML::Exception& e) {
     return Status::Error(source + ": not valid YAML (" + e.what() + ")");
   }
+  // The session's pair detection compares submaps as the merge does.
+  config.session.intra_pairs.detection = config.merge.dynamics;
   Status valid = config.Validate();
   if (!valid.ok()) return Status::Error(source + ": " + valid.message());
   return config;

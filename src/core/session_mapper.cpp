@@ -24,7 +24,7 @@ Status IntraLoopConfig::Validate() const {
 Status SessionMapperConfig::Validate() const {
   for (const Status& s : {odometry.Validate(), submaps.Validate(), intra_loops.Validate(),
                           pose_graph.Validate(), vertical_structure.Validate(),
-                          frame_anchor.Validate()}) {
+                          frame_anchor.Validate(), intra_pairs.Validate()}) {
     if (!s.ok()) return s;
   }
   if (!(odometry_sigma_translation_m > 0.0) || !(odometry_sigma_translation_per_m >= 0.0) ||
@@ -381,6 +381,12 @@ StatusOr<SessionResult> SessionMapper::Finish() {
     // Applied by SessionMerger to the first session of a map only.
     result.anchor = EstimateFirstScanPose(st.first_scan, st.submaps, st.first_submap,
                                           st.config.frame_anchor);
+  }
+  if (st.config.intra_pairs.enabled) {
+    StatusOr<IntraSessionPairsStats> pairs =
+        RemoveDynamicsBetweenSubmaps(st.config.intra_pairs, &st.submaps);
+    if (!pairs.ok()) return pairs.status();
+    st.timings.intra_pair_detection_s = pairs.value().pair_s;
   }
   result.trajectory = ScanTrajectory(st.submaps);
   result.submaps = std::move(st.submaps);

@@ -674,11 +674,16 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     if (rm != removed.end()) {
       for (std::uint32_t k : rm->second) change.removed_m.push_back(hs.T_map_submap * hs.points[k]);
     }
-    hs.points = std::move(history_points[h]);
-    const auto add = added_to_history.find(h);
-    if (add != added_to_history.end()) {
-      hs.points.insert(hs.points.end(), add->second.begin(), add->second.end());
+    if (rm != removed.end()) {
+      std::vector<std::uint8_t> drop(hs.points.size(), 0);
+      for (std::uint32_t k : rm->second) {
+        if (k < drop.size()) drop[k] = 1;
+      }
+      DropSubmapPoints(drop, &hs);
     }
+    history_points[h] = PointVector();
+    const auto add = added_to_history.find(h);
+    if (add != added_to_history.end()) AppendSubmapPoints(add->second, &hs);
     const auto md = mended_added.find(h);
     if (md != mended_added.end()) change.mended_m = md->second;
     report.points_removed += change.removed_m.size();
@@ -720,15 +725,15 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       // size (clear() keeps the capacity): a long-lived process (the nodelets) keeps the map
       // in memory across sessions, and every fused submap kept its whole point buffer.
       submap.points = PointVector();
+      submap.views = std::vector<PointViews>();
     } else {
       const auto dyn = current_dynamic.find(c);
       if (dyn != current_dynamic.end()) {
-        PointVector kept;
-        kept.reserve(submap.points.size() - dyn->second.size());
-        for (std::size_t k = 0; k < submap.points.size(); ++k) {
-          if (!dyn->second.count(static_cast<std::uint32_t>(k))) kept.push_back(submap.points[k]);
+        std::vector<std::uint8_t> drop(submap.points.size(), 0);
+        for (std::uint32_t k : dyn->second) {
+          if (k < drop.size()) drop[k] = 1;
         }
-        submap.points = std::move(kept);
+        DropSubmapPoints(drop, &submap);
       }
     }
     map->submaps.push_back(std::move(submap));

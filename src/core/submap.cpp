@@ -41,5 +41,33 @@ Trajectory ScanTrajectory(const std::vector<Submap, Eigen::aligned_allocator<Sub
   return trajectory;
 }
 
+void DropSubmapPoints(const std::vector<std::uint8_t>& drop, Submap* submap) {
+  PointVector& points = submap->points;
+  std::vector<PointViews>& views = submap->views;
+  const bool has_views = views.size() == points.size();
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (i < drop.size() && drop[i]) continue;
+    if (has_views) views[kept] = views[i];
+    points[kept++] = points[i];
+  }
+  points.resize(kept);
+  if (has_views) {
+    views.resize(kept);
+  } else {
+    views.clear();
+  }
+}
+
+void AppendSubmapPoints(const PointVector& points, Submap* submap) {
+  const bool has_views = submap->views.size() == submap->points.size();
+  submap->points.insert(submap->points.end(), points.begin(), points.end());
+  if (has_views) {
+    submap->views.resize(submap->points.size(), PointViews());
+  } else {
+    submap->views.clear();
+  }
+}
+
 }  // namespace core
 }  // namespace multisession_mapper

@@ -199,6 +199,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     q.p_submap = record.T_submap_sensor * p_sensor;
     q.key = ToVoxelKey(q.p_submap, config_.voxel_size_m);
     q.hash = VoxelIndexTable::Hash(q.key);
+    q.range_sq = static_cast<float>(p_sensor.squaredNorm());
     pending_.push_back(q);
   }
   // Two stages in step: the look-up of point i + kVoxelLag (it prefetches the table slot of
@@ -209,6 +210,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   std::uint32_t last_index = 0;
   std::size_t looked_up = 0;
   const std::size_t n = pending_.size();
+  const auto scan_index = static_cast<std::uint32_t>(current.submap.scans.size() - 1);
   for (std::size_t i = 0; i < n; ++i) {
     for (; looked_up < n && looked_up <= i + kVoxelLag; ++looked_up) {
       if (looked_up + kSlotLag < n) {
@@ -228,6 +230,11 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     VoxelPoint& voxel = current.voxels[pending_[i].voxel];
     voxel.sum += pending_[i].p_submap;
     ++voxel.count;
+    voxel.views.last_scan = scan_index;
+    if (pending_[i].range_sq < voxel.nearest_range_sq) {
+      voxel.nearest_range_sq = pending_[i].range_sq;
+      voxel.views.nearest_scan = scan_index;
+    }
   }
 
   // Submaps whose tail is driven are final.
@@ -247,6 +254,8 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   Submap& submap = open->submap;
   submap.points.clear();
   submap.points.reserve(open->voxels.size());
+  submap.views.clear();
+  submap.views.reserve(open->voxels.size());
   std::vector<std::uint8_t> dynamic(open->voxels.size(), 0);
   std::vector<std::uint32_t> frontier;
   for (std::size_t i = 0; i < open->voxels.size() && c.enabled; ++i) {
@@ -293,6 +302,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     }
     const VoxelPoint& voxel = open->voxels[i];
     submap.points.push_back(voxel.sum / voxel.count);
+    submap.views.push_back(voxel.views);
     ++stats_.voxels_kept;
   }
   open->voxels = {};

@@ -66,6 +66,7 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   Emit(&out, "global_registration", timings.global_registration_s);
   Emit(&out, "guided_registration", timings.guided_registration_s);
   Emit(&out, "dynamic_detection", timings.dynamic_detection_s);
+  Emit(&out, "intra_pair_detection", timings.intra_pair_detection_s);
   out << YAML::EndMap;
   out << YAML::Key << "merge_s" << YAML::Value << run.merge_s;
   out << YAML::Key << "merge_stages_s" << YAML::Value << YAML::Flow << YAML::BeginMap

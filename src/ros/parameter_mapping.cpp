@@ -41,6 +41,11 @@ namespace ros_params {
     s.submaps.dynamic_filter.range_image.no_return_free_range_m)                            \
   F(in_session_dynamics_angular_uncertainty_rad,                                            \
     s.submaps.dynamic_filter.range_image.angular_uncertainty_rad)                           \
+  F(intra_session_pairs_enabled, s.intra_pairs.enabled)                                     \
+  F(intra_session_pairs_neighbours, s.intra_pairs.neighbours)                               \
+  F(intra_session_pairs_min_pass_incidence_rad, s.intra_pairs.min_pass_incidence_rad)       \
+  F(intra_session_pairs_min_cluster_coarse_fraction,                                        \
+    s.intra_pairs.min_cluster_coarse_fraction)                                              \
   F(intra_loops_enabled, s.intra_loops.enabled)                                             \
   F(intra_loops_search_radius_m, s.intra_loops.search_radius_m)                             \
   F(intra_loops_min_id_gap, s.intra_loops.min_id_gap)                                       \

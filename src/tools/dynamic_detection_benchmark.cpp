@@ -416,6 +416,9 @@ int main(int argc, char** argv) {
       else if (key == "max_support_points") config.max_support_points = static_cast<int>(v);
       else if (key == "min_cluster_points") config.min_cluster_points = static_cast<int>(v);
       else if (key == "min_cluster_coarse_points") config.min_cluster_coarse_points = static_cast<int>(v);
+      else if (key == "min_cluster_coarse_fraction") config.min_cluster_coarse_fraction = v;
+      else if (key == "min_pass_incidence_rad") config.min_pass_incidence_rad = v;
+      else if (key == "rays_from_viewing_scans") config.rays_from_viewing_scans = v != 0.0;
       else if (key == "max_object_bottom_m") config.max_object_bottom_m = v;
       else if (key == "bottom_extension_radius_m") config.bottom_extension_radius_m = v;
       else if (key == "bottom_min_height_m") config.bottom_min_height_m = v;

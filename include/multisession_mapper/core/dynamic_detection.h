@@ -93,6 +93,16 @@ struct DynamicDetectionConfig {
   double origin_spacing_m = 2.0;
   int rays_per_point = 2;
   double max_ray_length_m = 40.0;
+  /// A point whose submap recorded which scans measured it (Submap::views) is ray-cast from
+  /// those scans' origins (nearest and last measurement, within max_ray_length_m) instead of
+  /// its nearest thinned origins, which need not have seen it.
+  bool rays_from_viewing_scans = false;
+  /// A ray counts as passing a queried voxel only when it meets the plane of the point that
+  /// put the voxel in question (its normal, normal_voxel_m) at least at this angle [rad]:
+  /// a ray that runs nearly parallel to a surface may pass beside it through the 0.2 m voxel
+  /// that holds it (the far side of a parked car that one submap saw and the other did not).
+  /// Points without a normal and the free column below them take every ray. 0: off.
+  double min_pass_incidence_rad = 0.0;
   /// Only points within this distance of the other session's sensor origins are examined
   /// (can be dynamic or mended) [m]: farther points are sparse, and their alignment error
   /// grows with range (0.5 deg of rotation error is 0.2 m at 25 m).
@@ -135,6 +145,11 @@ struct DynamicDetectionConfig {
   double dynamic_grow_radius_m = 0.45;
   int min_cluster_points = 10;
   int min_cluster_coarse_points = 3;
+  /// ... and at least this fraction of its points coarse [0, 1]: an object that the other
+  /// session's rays really passed through is seen through over much of it, while a few
+  /// grazing or column passes make a handful of coarse points in a surface the other session
+  /// saw from the other side. 0: off.
+  double min_cluster_coarse_fraction = 0.0;
   /// A detection must stand on the ground: its lowest point at most this high above the local
   /// ground [m]. Movable things rest on the ground (a car seen over another one shows only its
   /// top, from about 1.2 m); a porous tree crown or the upper part of a facade that the other

@@ -12,6 +12,7 @@
 
 #include "multisession_mapper/core/frame_anchor.h"
 #include "multisession_mapper/core/global_registration.h"
+#include "multisession_mapper/core/intra_session_pairs.h"
 #include "multisession_mapper/core/loop_record.h"
 #include "multisession_mapper/core/odometry.h"
 #include "multisession_mapper/core/pose_graph.h"
@@ -48,6 +49,9 @@ struct SessionMapperConfig {
   OdometryConfig odometry;
   SubmapBuilderConfig submaps;
   IntraLoopConfig intra_loops;
+  /// Pair detection between neighbouring submaps once the session is optimised
+  /// (intra_session_pairs.h).
+  IntraSessionPairsConfig intra_pairs;
   PoseGraphConfig pose_graph;
   /// Vertical prior of every finished submap from its walls (vertical_structure.h).
   VerticalStructureConfig vertical_structure;
@@ -86,6 +90,7 @@ struct SessionTimings {
   /// Per inter-session candidate pair registered from a neighbouring loop's pose (merge).
   std::vector<double> guided_registration_s;
   std::vector<double> dynamic_detection_s;    ///< per overlapping submap pair (merge)
+  std::vector<double> intra_pair_detection_s;  ///< per neighbouring submap pair (Finish)
 };
 
 struct SessionResult {

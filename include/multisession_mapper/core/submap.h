@@ -19,6 +19,17 @@ struct SubmapScanRecord {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
+/// Which of a submap's scans measured a point's voxel: the scan of the nearest measurement
+/// and the last scan. Indices into Submap::scans; kUnknownScan when not recorded (points a merge
+/// added, maps written before the record existed). The pair detection casts a point's rays to
+/// these origins: a ray to an origin that did not see the point may pass through holes of a
+/// sparsely sampled object in front of it and pass for free space.
+struct PointViews {
+  static constexpr std::uint32_t kUnknownScan = 0xffffffffu;
+  std::uint32_t nearest_scan = kUnknownScan;
+  std::uint32_t last_scan = kUnknownScan;
+};
+
 enum class SubmapState {
   kActive,  ///< part of the map
   kFused,   ///< replaced by an overlapping submap of a later session; kept for the record
@@ -30,6 +41,8 @@ struct Submap {
   Pose3 T_map_submap = Pose3::Identity();  ///< origin: sensor pose of the first scan, map frame
   std::vector<SubmapScanRecord, Eigen::aligned_allocator<SubmapScanRecord>> scans;
   PointVector points;  ///< downsampled, dynamic-filtered points in the submap frame [m]
+  /// Per point (same order as `points`), or empty when not recorded.
+  std::vector<PointViews> views;
   SubmapState state = SubmapState::kActive;
   double length_m = 0.0;  ///< distance driven while the submap was built [m]
   /// The odometry jump [m] at which the submap started (SubmapBuilderConfig::break_on_jump_m),
@@ -51,6 +64,13 @@ void AppendScanPoses(const Submap& submap, Trajectory* out);
 void SortTrajectory(Trajectory* trajectory);
 /// The scan poses of all `submaps`, sorted by stamp, one per stamp (the two calls above).
 Trajectory ScanTrajectory(const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submaps);
+
+/// Removes the points whose `drop` entry is non-zero (drop has one entry per point), and their
+/// views when the submap records them.
+void DropSubmapPoints(const std::vector<std::uint8_t>& drop, Submap* submap);
+/// Appends points (submap frame) of unknown views (e.g. from another session's scans); the
+/// submap keeps recording views only if it did.
+void AppendSubmapPoints(const PointVector& points, Submap* submap);
 
 }  // namespace core
 }  // namespace multisession_mapper

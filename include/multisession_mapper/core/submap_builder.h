@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -134,6 +135,8 @@ class SubmapBuilder {
     std::uint16_t consistent = 0;
     std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
     std::uint32_t last_consistent_scan = 0;  ///< scan counter of the last consistent check
+    float nearest_range_sq = std::numeric_limits<float>::max();  ///< of its measurements [m^2]
+    PointViews views;  ///< scans (indices into the submap's scans) that measured it
   };
   /// A scan point on its way into the current submap (AddScan's look-up buffer).
   struct PendingPoint {
@@ -141,6 +144,7 @@ class SubmapBuilder {
     VoxelKey key;
     std::size_t hash = 0;
     std::uint32_t voxel = 0;  ///< index in the current submap's voxels, once looked up
+    float range_sq = 0.0f;    ///< from the sensor [m^2]
   };
   struct OpenSubmap {
     Submap submap;
