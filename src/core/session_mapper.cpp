@@ -387,6 +387,7 @@ StatusOr<SessionResult> SessionMapper::Finish() {
         RemoveDynamicsBetweenSubmaps(st.config.intra_pairs, &st.submaps);
     if (!pairs.ok()) return pairs.status();
     st.timings.intra_pair_detection_s = pairs.value().pair_s;
+    result.intra_pairs = pairs.value();
   }
   result.trajectory = ScanTrajectory(st.submaps);
   result.submaps = std::move(st.submaps);

@@ -288,6 +288,14 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   for (const core::LoopRecord& loop : result.value().loops) {
     accepted += loop.status == core::LoopStatus::kAccepted;
   }
+  const core::IntraSessionPairsStats& pairs = result.value().intra_pairs;
+  if (pairs.pairs > 0) {
+    std::fprintf(stderr,
+                 "%s: %zu points of moving objects removed between neighbouring submaps "
+                 "(%zu pairs, %zu left unchanged as misaligned, %.2f s per pair median)\n",
+                 name.c_str(), pairs.points_removed, pairs.pairs, pairs.skipped_pairs,
+                 core::Summarize(pairs.pair_s).median);
+  }
   const core::TimingSummary odom = core::Summarize(result.value().timings.odometry_ms);
   std::fprintf(stderr,
                "%s: %zu scans (%zu skipped), %zu submaps, %d intra-session loops accepted, "

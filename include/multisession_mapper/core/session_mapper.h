@@ -103,6 +103,7 @@ struct SessionResult {
   Trajectory odometry;      ///< raw odometry of every scan
   LoopRecords loops;        ///< intra-session candidates and their fate
   FrameAnchorResult anchor;  ///< the first scans' registration (frame_anchor.h)
+  IntraSessionPairsStats intra_pairs;  ///< the pair detection between its submaps (if enabled)
   SessionTimings timings;
   std::size_t scans_processed = 0;
   std::size_t scans_skipped = 0;
