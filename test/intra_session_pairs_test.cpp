@@ -88,8 +88,9 @@ TEST(IntraSessionPairs, CarSeenOnlyFarAwayIsRemovedAndTheStaticStreetKept) {
   const Counts before = Count(submaps);
   ASSERT_GT(before.leaving, 30);  // the first submap holds the leaving car
   ASSERT_GT(before.parked, 500);
-  StatusOr<IntraSessionPairsStats> stats =
-      RemoveDynamicsBetweenSubmaps(IntraSessionPairsConfig(), &submaps);
+  IntraSessionPairsConfig config;
+  config.neighbours = 2;
+  StatusOr<IntraSessionPairsStats> stats = RemoveDynamicsBetweenSubmaps(config, &submaps);
   ASSERT_TRUE(stats.ok()) << stats.status().message();
   EXPECT_EQ(stats.value().pairs, 2 * submaps.size() - 3);  // next and next but one
   EXPECT_EQ(stats.value().skipped_pairs, 0u);

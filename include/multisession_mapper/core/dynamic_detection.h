@@ -31,12 +31,13 @@
 //  6. Mending: points of the current difference set that are not dynamic and were hidden in
 //     the history session (behind what was removed) are returned for adding to the history.
 //
-// How the sparse submaps are handled (the submaps keep one point per 0.2 m voxel and only the
-// sensor origins of their scans, not which scan saw which point):
+// How the sparse submaps are handled (the submaps keep one point per 0.2 m voxel, the sensor
+// origins of their scans and, since session 43, each point's nearest and last measuring scan):
 //  - A ray goes from each point to its `rays_per_point` nearest sensor origins (origins thinned
-//    to one per `origin_spacing_m`). A ray that meets an occupied voxel of its own session
-//    before its end did not see its end point from there and is dropped ("only occupied voxels
-//    in front of the rays"). Free space ends `end_margin_m` before the end point (longer for
+//    to one per `origin_spacing_m`), or with `rays_from_viewing_scans` to the origins of the
+//    scans that measured it (when its submap recorded them). A ray that meets an occupied
+//    voxel of its own session before its end did not see its end point from there and is
+//    dropped ("only occupied voxels in front of the rays"). Free space ends `end_margin_m` before the end point (longer for
 //    rays that graze the ground) so that surface samples do not clear their neighbours.
 //  - Porous things (tree canopies, hedges, mesh fences) return different points every session:
 //    one session's rays pass where the other hit a leaf. A point only counts as a coarse
