@@ -121,6 +121,22 @@ TEST(IntraSessionPairs, WithTheMergesSettingsTheFarSideOfTheParkedCarGoes) {
   EXPECT_LE(after.leaving, before.leaving / 5) << "of " << before.leaving;
 }
 
+TEST(IntraSessionPairs, NoPairAcrossAJumpOfTheOdometry) {
+  auto submaps = BuildSession();
+  ASSERT_GE(submaps.size(), 3u);
+  submaps[1].started_at_jump_m = 0.8;  // the odometry jumped between submaps 0 and 1
+  const Counts before = Count(submaps);
+  IntraSessionPairsConfig config;
+  config.neighbours = 2;
+  StatusOr<IntraSessionPairsStats> stats = RemoveDynamicsBetweenSubmaps(config, &submaps);
+  ASSERT_TRUE(stats.ok()) << stats.status().message();
+  // Submap 0 pairs with nothing (1 and 2 lie beyond the jump); the others as usual.
+  EXPECT_EQ(stats.value().pairs, 2 * submaps.size() - 5);
+  EXPECT_EQ(stats.value().pairs_across_jumps, 2u);
+  // The leaving car is only in submap 0, so it stays.
+  EXPECT_EQ(Count(submaps).leaving, before.leaving);
+}
+
 TEST(IntraSessionPairs, RejectsInvalidConfigs) {
   std::vector<Submap, Eigen::aligned_allocator<Submap>> submaps(2);
   IntraSessionPairsConfig config;

@@ -45,11 +45,19 @@ StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
   struct Pair {
     std::size_t earlier, later;
   };
+  IntraSessionPairsStats stats;
   std::vector<Pair> pairs;
   std::vector<int> uses(maps.size(), 0);
   for (std::size_t i = 0; i < maps.size(); ++i) {
     if (maps[i].points.empty() || maps[i].scans.empty()) continue;
     for (std::size_t j = i + 1; j < maps.size() && j <= i + config.neighbours; ++j) {
+      // Not across a jump of the odometry (Submap::started_at_jump_m): the two sides of a
+      // jump are placed only by a weak link unless a loop corrected it, and a misplaced pair
+      // passes for change.
+      if (maps[j].started_at_jump_m > 0.0) {
+        stats.pairs_across_jumps += std::min(maps.size() - 1, i + config.neighbours) - j + 1;
+        break;
+      }
       if (maps[j].points.empty() || maps[j].scans.empty()) continue;
       pairs.push_back({i, j});
       ++uses[i];
@@ -68,7 +76,6 @@ StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
     detections[i] = detector.value().Detect(maps[p.earlier], maps[p.later], T_later_earlier,
                                             &indices, p.earlier, &indices, p.later);
   });
-  IntraSessionPairsStats stats;
   stats.pairs = pairs.size();
   std::vector<std::vector<std::uint8_t>> dynamic(maps.size());
   for (std::size_t k = 0; k < maps.size(); ++k) dynamic[k].assign(maps[k].points.size(), 0);

@@ -292,9 +292,10 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   if (pairs.pairs > 0) {
     std::fprintf(stderr,
                  "%s: %zu points of moving objects removed between neighbouring submaps "
-                 "(%zu pairs, %zu left unchanged as misaligned, %.2f s per pair median)\n",
+                 "(%zu pairs, %zu left unchanged as misaligned, %zu not compared across odometry "
+                 "jumps, %.2f s per pair median)\n",
                  name.c_str(), pairs.points_removed, pairs.pairs, pairs.skipped_pairs,
-                 core::Summarize(pairs.pair_s).median);
+                 pairs.pairs_across_jumps, core::Summarize(pairs.pair_s).median);
   }
   const core::TimingSummary odom = core::Summarize(result.value().timings.odometry_ms);
   std::fprintf(stderr,

@@ -59,13 +59,15 @@ struct IntraSessionPairsConfig {
 struct IntraSessionPairsStats {
   std::size_t pairs = 0;
   std::size_t skipped_pairs = 0;  ///< misaligned (too many dynamic points) or failed
+  std::size_t pairs_across_jumps = 0;  ///< not compared: a submap between started at a jump
   std::size_t points_removed = 0;
   std::vector<double> pair_s;  ///< wall time of each detection [s]
 };
 
 /// Runs the pair detection between each submap of `submaps` (one session, origins
 /// `T_map_submap` already optimised, in id order) and its next `config.neighbours` submaps,
-/// then removes every point found dynamic in any of its pairs from its submap.
+/// except across a submap that started at a jump of the odometry, then removes every point
+/// found dynamic in any of its pairs from its submap.
 StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
     const IntraSessionPairsConfig& config,
     std::vector<Submap, Eigen::aligned_allocator<Submap>>* submaps);
