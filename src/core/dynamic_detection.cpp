@@ -43,8 +43,8 @@ Status CheckPositive(const std::string& name, double value) {
 struct Side {
   PointVector points;
   PointVector origins;  // thinned sensor origins
-  PointVector scan_origins;        // every scan's origin, by scan index (with views only)
-  std::vector<PointViews> views;   // per point, or empty: rays from the nearest origins
+  PointVector scan_origins;  // every scan's origin, by scan index (with views only)
+  const std::vector<PointViews>* views = nullptr;  // the submap's, or null: nearest origins
   std::vector<std::uint8_t> common;
   std::vector<std::uint8_t> far;  // beyond max_range_m of the other session (the far band)
   std::vector<float> nearest_other_m;  // distance to the nearest point of the other submap
@@ -756,7 +756,6 @@ class PairDetection {
     return it != normals.end() && std::abs(it->second.dot(direction)) < min_pass_sin_;
   }
 
-  static constexpr std::uint32_t kScanBit = 0x80000000u;
   // Rays from the thinned origins of side s to its points; counts the passes through voxels
   // queried by the other side. A ray blocked by its own session's occupied voxel is dropped.
   void CastSide(int s) {
@@ -768,35 +767,31 @@ class PairDetection {
                                                 side.origins.size());
     const double max_len_sq = config_.max_ray_length_m * config_.max_ray_length_m;
     const double origin_clearance_m = config_.voxel_size_m;
-    std::vector<std::pair<double, std::uint32_t>> nearest;
+    // Candidate ray origins of a point by squared distance.
+    std::vector<std::pair<double, const Eigen::Vector3d*>> nearest;
     std::vector<RayVoxelGrid::Cell*> passed;
-    const bool by_views = config_.rays_from_viewing_scans && !side.views.empty();
+    const auto add_origin = [&](const Eigen::Vector3d& o, const Eigen::Vector3d& p) {
+      const double d2 = (o - p).squaredNorm();
+      if (d2 <= max_len_sq) nearest.emplace_back(d2, &o);
+    };
     for (std::size_t i = 0; i < side.points.size(); ++i) {
       const Eigen::Vector3d& p = side.points[i];
       nearest.clear();
-      const PointViews* views = by_views ? &side.views[i] : nullptr;
+      const PointViews* views = side.views != nullptr ? &(*side.views)[i] : nullptr;
       if (views != nullptr && views->nearest_scan < side.scan_origins.size() &&
           views->last_scan < side.scan_origins.size()) {
-        // Rays to the scans that measured the point (indices into scan_origins, marked by
-        // the top bit so that the loop below picks the right list).
-        for (std::uint32_t scan : {views->nearest_scan, views->last_scan}) {
-          const double d2 = (side.scan_origins[scan] - p).squaredNorm();
-          if (d2 <= max_len_sq && (nearest.empty() || scan != views->nearest_scan)) {
-            nearest.emplace_back(d2, scan | kScanBit);
-          }
+        // Rays to the scans that measured the point.
+        add_origin(side.scan_origins[views->nearest_scan], p);
+        if (views->last_scan != views->nearest_scan) {
+          add_origin(side.scan_origins[views->last_scan], p);
         }
       } else {
-        for (std::size_t o = 0; o < side.origins.size(); ++o) {
-          const double d2 = (side.origins[o] - p).squaredNorm();
-          if (d2 <= max_len_sq) nearest.emplace_back(d2, static_cast<std::uint32_t>(o));
-        }
+        for (const Eigen::Vector3d& o : side.origins) add_origin(o, p);
       }
       const std::size_t rays = std::min(k, nearest.size());
       std::partial_sort(nearest.begin(), nearest.begin() + rays, nearest.end());
       for (std::size_t r = 0; r < rays; ++r) {
-        const std::uint32_t which = nearest[r].second;
-        const Eigen::Vector3d& o = (which & kScanBit) ? side.scan_origins[which & ~kScanBit]
-                                                      : side.origins[which];
+        const Eigen::Vector3d& o = *nearest[r].second;
         const double length = std::sqrt(nearest[r].first);
         double margin = config_.end_margin_m;
         if (side.height_m[i] < config_.ground_tolerance_m && length > 0.0) {
@@ -876,6 +871,12 @@ bool NearAny(const PointVector& origins, const Eigen::Vector3d& p, double range_
     if ((o - p).squaredNorm() <= range_sq) return true;
   }
   return false;
+}
+
+bool DynamicDetectionResult::MarksMoreThan(double fraction, std::size_t history_points,
+                                           std::size_t current_points) const {
+  return history_dynamic.size() > fraction * std::max<std::size_t>(1, history_points) ||
+         current_dynamic.size() > fraction * std::max<std::size_t>(1, current_points);
 }
 
 Status DynamicDetectionConfig::Validate() const {
@@ -1079,7 +1080,7 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
       const Submap& submap = s == kHistory ? history : current;
       if (submap.views.size() != submap.points.size()) continue;
       const Pose3 T = s == kHistory ? T_current_history : Pose3::Identity();
-      sides[s].views = submap.views;
+      sides[s].views = &submap.views;
       for (const SubmapScanRecord& scan : submap.scans) {
         sides[s].scan_origins.push_back(T * scan.T_submap_sensor.translation());
       }

@@ -87,9 +87,8 @@ StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
     const DynamicDetectionResult& d = detections[i].value();
     stats.pair_s.push_back(d.time_s);
     const Pair& p = pairs[i];
-    const double limit = config.max_dynamic_fraction;
-    if (d.history_dynamic.size() > limit * maps[p.earlier].points.size() ||
-        d.current_dynamic.size() > limit * maps[p.later].points.size()) {
+    if (d.MarksMoreThan(config.max_dynamic_fraction, maps[p.earlier].points.size(),
+                        maps[p.later].points.size())) {
       ++stats.skipped_pairs;
       continue;
     }

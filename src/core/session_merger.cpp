@@ -501,11 +501,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     }
     const DynamicDetectionResult& d = detections[i].value();
     report.dynamic_pair_s.push_back(d.time_s);
-    // A pair that disagrees on much of its content is misaligned or not really overlapping;
-    // removing that much would damage the map.
-    const double limit = config_.fusion.max_dynamic_fraction;
-    if (d.history_dynamic.size() > limit * std::max<std::size_t>(1, hs.points.size()) ||
-        d.current_dynamic.size() > limit * std::max<std::size_t>(1, cs.points.size())) {
+    if (d.MarksMoreThan(config_.fusion.max_dynamic_fraction, hs.points.size(),
+                        cs.points.size())) {
       skipped_pairs.push_back(name + ": too many dynamic points (" +
                               std::to_string(d.history_dynamic.size()) + " history, " +
                               std::to_string(d.current_dynamic.size()) +
@@ -674,13 +671,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     if (rm != removed.end()) {
       for (std::uint32_t k : rm->second) change.removed_m.push_back(hs.T_map_submap * hs.points[k]);
     }
-    if (rm != removed.end()) {
-      std::vector<std::uint8_t> drop(hs.points.size(), 0);
-      for (std::uint32_t k : rm->second) {
-        if (k < drop.size()) drop[k] = 1;
-      }
-      DropSubmapPoints(drop, &hs);
-    }
+    if (rm != removed.end()) DropSubmapPointsAt(rm->second, &hs);
     history_points[h] = PointVector();
     const auto add = added_to_history.find(h);
     if (add != added_to_history.end()) AppendSubmapPoints(add->second, &hs);
@@ -728,13 +719,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       submap.views = std::vector<PointViews>();
     } else {
       const auto dyn = current_dynamic.find(c);
-      if (dyn != current_dynamic.end()) {
-        std::vector<std::uint8_t> drop(submap.points.size(), 0);
-        for (std::uint32_t k : dyn->second) {
-          if (k < drop.size()) drop[k] = 1;
-        }
-        DropSubmapPoints(drop, &submap);
-      }
+      if (dyn != current_dynamic.end()) DropSubmapPointsAt(dyn->second, &submap);
     }
     map->submaps.push_back(std::move(submap));
   }

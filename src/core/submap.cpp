@@ -59,6 +59,14 @@ void DropSubmapPoints(const std::vector<std::uint8_t>& drop, Submap* submap) {
   }
 }
 
+void DropSubmapPointsAt(const std::set<std::uint32_t>& indices, Submap* submap) {
+  std::vector<std::uint8_t> drop(submap->points.size(), 0);
+  for (std::uint32_t k : indices) {
+    if (k < drop.size()) drop[k] = 1;
+  }
+  DropSubmapPoints(drop, submap);
+}
+
 void AppendSubmapPoints(const PointVector& points, Submap* submap) {
   const bool has_views = submap->views.size() == submap->points.size();
   submap->points.insert(submap->points.end(), points.begin(), points.end());

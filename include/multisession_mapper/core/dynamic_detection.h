@@ -37,8 +37,9 @@
 //    to one per `origin_spacing_m`), or with `rays_from_viewing_scans` to the origins of the
 //    scans that measured it (when its submap recorded them). A ray that meets an occupied
 //    voxel of its own session before its end did not see its end point from there and is
-//    dropped ("only occupied voxels in front of the rays"). Free space ends `end_margin_m` before the end point (longer for
-//    rays that graze the ground) so that surface samples do not clear their neighbours.
+//    dropped ("only occupied voxels in front of the rays"). Free space ends `end_margin_m`
+//    before the end point (longer for rays that graze the ground) so that surface samples do
+//    not clear their neighbours.
 //  - Porous things (tree canopies, hedges, mesh fences) return different points every session:
 //    one session's rays pass where the other hit a leaf. A point only counts as a coarse
 //    dynamic point when the evidence is consistent: at least `min_passing_rays` rays of the
@@ -259,6 +260,11 @@ struct DynamicDetectionConfig {
 struct DynamicDetectionResult {
   std::vector<std::uint32_t> history_dynamic;  ///< indices into history.points
   std::vector<std::uint32_t> current_dynamic;  ///< indices into current.points
+  /// Whether the detection marks more than `fraction` of either submap (sizes of their point
+  /// sets): a pair that disagrees on that much is misaligned or not really overlapping, and
+  /// removing it would damage the map.
+  bool MarksMoreThan(double fraction, std::size_t history_points,
+                     std::size_t current_points) const;
   /// Indices into current.points of static points hidden in the history session, to be added
   /// to the history submap (in the current frame; move them with T_history_current).
   /// Criterion: no history point within mending_distance_m, not current_dynamic, within

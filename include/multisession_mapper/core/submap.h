@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,8 @@ Trajectory ScanTrajectory(const std::vector<Submap, Eigen::aligned_allocator<Sub
 /// Removes the points whose `drop` entry is non-zero (drop has one entry per point), and their
 /// views when the submap records them.
 void DropSubmapPoints(const std::vector<std::uint8_t>& drop, Submap* submap);
+/// The same for the points with these indices (indices beyond the points are ignored).
+void DropSubmapPointsAt(const std::set<std::uint32_t>& indices, Submap* submap);
 /// Appends points (submap frame) of unknown views (e.g. from another session's scans); the
 /// submap keeps recording views only if it did.
 void AppendSubmapPoints(const PointVector& points, Submap* submap);
