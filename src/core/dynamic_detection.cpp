@@ -873,6 +873,16 @@ bool NearAny(const PointVector& origins, const Eigen::Vector3d& p, double range_
   return false;
 }
 
+void DynamicDetectionResult::StageTimes::Add(const StageTimes& other) {
+  index_s += other.index_s;
+  ground_s += other.ground_s;
+  common_s += other.common_s;
+  rays_s += other.rays_s;
+  dynamic_s += other.dynamic_s;
+  changed_s += other.changed_s;
+  mending_s += other.mending_s;
+}
+
 bool DynamicDetectionResult::MarksMoreThan(double fraction, std::size_t history_points,
                                            std::size_t current_points) const {
   return history_dynamic.size() > fraction * std::max<std::size_t>(1, history_points) ||

@@ -31,6 +31,8 @@ DynamicDetectionConfig IntraSessionPairsConfig::DetectionConfig() const {
   c.rays_from_viewing_scans = rays_from_viewing_scans;
   c.min_pass_incidence_rad = min_pass_incidence_rad;
   c.min_cluster_coarse_fraction = min_cluster_coarse_fraction;
+  c.own_ground_max_gap_m = own_ground_max_gap_m;
+  c.changed_objects_enabled = changed_objects_enabled;
   return c;
 }
 
@@ -86,6 +88,7 @@ StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
     }
     const DynamicDetectionResult& d = detections[i].value();
     stats.pair_s.push_back(d.time_s);
+    stats.stage_s.Add(d.stage);
     const Pair& p = pairs[i];
     if (d.MarksMoreThan(config.max_dynamic_fraction, maps[p.earlier].points.size(),
                         maps[p.later].points.size())) {

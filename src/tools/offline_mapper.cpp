@@ -296,6 +296,15 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
                  "jumps, %.2f s per pair median)\n",
                  name.c_str(), pairs.points_removed, pairs.pairs, pairs.skipped_pairs,
                  pairs.pairs_across_jumps, core::Summarize(pairs.pair_s).median);
+    std::string steps;
+    for (const auto& step : pairs.stage_s.Named()) {
+      char item[64];
+      std::snprintf(item, sizeof(item), "%s%s %.2f s", steps.empty() ? "" : ", ", step.first,
+                    step.second);
+      steps += item;
+    }
+    std::fprintf(stderr, "%s: pair detection steps, summed over the pairs: %s\n", name.c_str(),
+                 steps.c_str());
   }
   const core::TimingSummary odom = core::Summarize(result.value().timings.odometry_ms);
   std::fprintf(stderr,

@@ -307,6 +307,8 @@ struct DynamicDetectionResult {
                {"changed", changed_s},
                {"mending", mending_s}}};
     }
+    /// Adds `other`'s times step by step (sums over pairs).
+    void Add(const StageTimes& other);
   };
   StageTimes stage;
 };
