@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/intra_session_pairs.h"
 
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -28,6 +29,9 @@ SceneBox Box(double x, double y, double half_x, double half_y, double height) {
 const SceneBox kWall = Box(12.15, 0.0, 0.15, 40.0, 4.0);
 const SceneBox kParkedCar = Box(8.1, -12.0, 0.9, 2.25, 1.5);
 const SceneBox kLeavingCar = Box(8.1, 14.0, 0.9, 2.25, 1.5);
+// A second car, there while the robot is 40-55 m away: a VLP-16 1.8 m up measures flat ground
+// up to ~34 m (its -3 deg ring) and then not before ~100 m (-1 deg), so no ground around it.
+const SceneBox kFarCar = Box(-8.1, 26.0, 0.9, 2.25, 1.5);
 
 // Within `margin` of the box, above the lowest ring's hits on the ground (0.23-0.25 m: what
 // is left of a removed car there is the ground's business, see the bottom extension).
@@ -36,7 +40,7 @@ bool InBox(const SceneBox& b, const Eigen::Vector3d& p, double margin) {
 }
 
 struct Counts {
-  int leaving = 0, parked = 0, wall = 0, ground = 0;
+  int leaving = 0, far = 0, parked = 0, wall = 0, ground = 0;
 };
 
 Counts Count(const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submaps) {
@@ -46,6 +50,8 @@ Counts Count(const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submap
       const Eigen::Vector3d p = submap.T_map_submap * q;
       if (InBox(kLeavingCar, p, 0.3)) {
         ++c.leaving;
+      } else if (InBox(kFarCar, p, 0.3)) {
+        ++c.far;
       } else if (InBox(kParkedCar, p, 0.3)) {
         ++c.parked;
       } else if (InBox(kWall, p, 0.3)) {
@@ -60,14 +66,20 @@ Counts Count(const std::vector<Submap, Eigen::aligned_allocator<Submap>>& submap
 
 // The session's submaps (20 m each), without the in-session visibility check, so that the
 // leaving car, seen only 30-45 m away, is in the first submap as it would be with it.
-std::vector<Submap, Eigen::aligned_allocator<Submap>> BuildSession() {
+// With `far_car`, the far car is in the street too (a scene of its own: the other tests'
+// scenes stay the same, sample for sample).
+std::vector<Submap, Eigen::aligned_allocator<Submap>> BuildSession(bool far_car = false) {
   SubmapBuilderConfig config;
   config.dynamic_filter.enabled = false;
   config.break_on_jump_m = 0.0;
   StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
   EXPECT_TRUE(builder.ok()) << builder.status().message();
   SyntheticScene with_car(1, 0, 1.0, {}, 0.0), without_car(1, 0, 1.0, {}, 0.0);
-  with_car.SetBoxes({kWall, kParkedCar, kLeavingCar});
+  if (far_car) {
+    with_car.SetBoxes({kWall, kParkedCar, kLeavingCar, kFarCar});
+  } else {
+    with_car.SetBoxes({kWall, kParkedCar, kLeavingCar});
+  }
   without_car.SetBoxes({kWall, kParkedCar});
   for (int i = 0; i <= 120; ++i) {
     const double y = -30.0 + 0.5 * i;
@@ -82,7 +94,7 @@ std::vector<Submap, Eigen::aligned_allocator<Submap>> BuildSession() {
 }
 
 TEST(IntraSessionPairs, CarSeenOnlyFarAwayIsRemovedAndTheStaticStreetKept) {
-  auto submaps = BuildSession();
+  auto submaps = BuildSession(true);
   ASSERT_GE(submaps.size(), 3u);
   for (const Submap& s : submaps) ASSERT_EQ(s.views.size(), s.points.size());
   const Counts before = Count(submaps);
@@ -97,10 +109,34 @@ TEST(IntraSessionPairs, CarSeenOnlyFarAwayIsRemovedAndTheStaticStreetKept) {
   EXPECT_EQ(stats.value().pair_s.size(), stats.value().pairs);
   const Counts after = Count(submaps);
   EXPECT_LE(after.leaving, before.leaving / 20) << "of " << before.leaving;
+  EXPECT_LE(after.far, before.far / 5) << "of " << before.far;
   EXPECT_EQ(after.parked, before.parked);
   EXPECT_GE(after.wall, before.wall * 0.995) << "of " << before.wall;
   EXPECT_GE(after.ground, before.ground * 0.995) << "of " << before.ground;
   for (const Submap& s : submaps) EXPECT_EQ(s.views.size(), s.points.size());
+}
+
+TEST(IntraSessionPairs, CarWithoutGroundAroundItNeedsTheJointGround) {
+  // The far car's submap measured no ground near it: its own lowest points are its ground, so
+  // with the merge's 1 m gap the car is ground and stays; against both submaps' ground (the
+  // later submaps measured the street there) it goes.
+  auto submaps = BuildSession(true);
+  const Counts before = Count(submaps);
+  ASSERT_GT(before.far, 10);
+  IntraSessionPairsConfig config;
+  config.neighbours = 2;
+  config.own_ground_max_gap_m = 1.0;
+  auto own = submaps;
+  ASSERT_TRUE(RemoveDynamicsBetweenSubmaps(config, &own).ok());
+  EXPECT_GE(Count(own).far, before.far / 2) << "of " << before.far;
+  std::printf("far car points: %d before, %d after with the 1 m gap, ", before.far, Count(own).far);
+  config.own_ground_max_gap_m = IntraSessionPairsConfig().own_ground_max_gap_m;
+  ASSERT_TRUE(RemoveDynamicsBetweenSubmaps(config, &submaps).ok());
+  const Counts after = Count(submaps);
+  EXPECT_LE(after.far, before.far / 5) << "of " << before.far;
+  std::printf("%d with the default\n", after.far);
+  EXPECT_EQ(after.parked, before.parked);
+  EXPECT_GE(after.ground, before.ground * 0.995) << "of " << before.ground;
 }
 
 TEST(IntraSessionPairs, WithTheMergesSettingsTheFarSideOfTheParkedCarGoes) {
@@ -111,9 +147,12 @@ TEST(IntraSessionPairs, WithTheMergesSettingsTheFarSideOfTheParkedCarGoes) {
   auto submaps = BuildSession();
   const Counts before = Count(submaps);
   IntraSessionPairsConfig config;
-  config.rays_from_viewing_scans = false;
-  config.min_pass_incidence_rad = 0.0;
-  config.min_cluster_coarse_fraction = 0.0;
+  const DynamicDetectionConfig merge;
+  config.rays_from_viewing_scans = merge.rays_from_viewing_scans;
+  config.min_pass_incidence_rad = merge.min_pass_incidence_rad;
+  config.min_cluster_coarse_fraction = merge.min_cluster_coarse_fraction;
+  config.own_ground_max_gap_m = merge.own_ground_max_gap_m;
+  config.changed_objects_enabled = merge.changed_objects_enabled;
   StatusOr<IntraSessionPairsStats> stats = RemoveDynamicsBetweenSubmaps(config, &submaps);
   ASSERT_TRUE(stats.ok()) << stats.status().message();
   const Counts after = Count(submaps);
@@ -150,6 +189,9 @@ TEST(IntraSessionPairs, RejectsInvalidConfigs) {
   EXPECT_FALSE(RemoveDynamicsBetweenSubmaps(config, &submaps).ok());
   config = IntraSessionPairsConfig();
   config.min_cluster_coarse_fraction = 1.5;
+  EXPECT_FALSE(RemoveDynamicsBetweenSubmaps(config, &submaps).ok());
+  config = IntraSessionPairsConfig();
+  config.own_ground_max_gap_m = -0.1;
   EXPECT_FALSE(RemoveDynamicsBetweenSubmaps(config, &submaps).ok());
   config = IntraSessionPairsConfig();
   config.detection.voxel_size_m = -1.0;
