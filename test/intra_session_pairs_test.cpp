@@ -153,6 +153,7 @@ TEST(IntraSessionPairs, WithTheMergesSettingsTheFarSideOfTheParkedCarGoes) {
   config.min_cluster_coarse_fraction = merge.min_cluster_coarse_fraction;
   config.own_ground_max_gap_m = merge.own_ground_max_gap_m;
   config.changed_objects_enabled = merge.changed_objects_enabled;
+  config.far_range_m = merge.far_range_m;
   StatusOr<IntraSessionPairsStats> stats = RemoveDynamicsBetweenSubmaps(config, &submaps);
   ASSERT_TRUE(stats.ok()) << stats.status().message();
   const Counts after = Count(submaps);

@@ -33,6 +33,7 @@ DynamicDetectionConfig IntraSessionPairsConfig::DetectionConfig() const {
   c.min_cluster_coarse_fraction = min_cluster_coarse_fraction;
   c.own_ground_max_gap_m = own_ground_max_gap_m;
   c.changed_objects_enabled = changed_objects_enabled;
+  c.far_range_m = far_range_m;
   return c;
 }
 

@@ -92,6 +92,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
        &s.intra_pairs.min_cluster_coarse_fraction},
       {"intra_session_pairs", "own_ground_max_gap_m", &s.intra_pairs.own_ground_max_gap_m},
       {"intra_session_pairs", "changed_objects_enabled", &s.intra_pairs.changed_objects_enabled},
+      {"intra_session_pairs", "far_range_m", &s.intra_pairs.far_range_m},
       {"intra_loops", "enabled", &s.intra_loops.enabled},
       {"intra_loops", "search_radius_m", &s.intra_loops.search_radius_m},
       {"intra_loops", "min_id_gap", &s.intra_loops.min_id_gap},

@@ -48,6 +48,7 @@ namespace ros_params {
     s.intra_pairs.min_cluster_coarse_fraction)                                              \
   F(intra_session_pairs_own_ground_max_gap_m, s.intra_pairs.own_ground_max_gap_m)           \
   F(intra_session_pairs_changed_objects_enabled, s.intra_pairs.changed_objects_enabled)     \
+  F(intra_session_pairs_far_range_m, s.intra_pairs.far_range_m)                             \
   F(intra_loops_enabled, s.intra_loops.enabled)                                             \
   F(intra_loops_search_radius_m, s.intra_loops.search_radius_m)                             \
   F(intra_loops_min_id_gap, s.intra_loops.min_id_gap)                                       \
