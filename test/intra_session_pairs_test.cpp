@@ -141,9 +141,9 @@ TEST(IntraSessionPairs, CarWithoutGroundAroundItNeedsTheJointGround) {
 
 TEST(IntraSessionPairs, WithTheMergesSettingsTheFarSideOfTheParkedCarGoes) {
   // The second submap sees the parked car's rear face, which the first one never saw: rays of
-  // the first submap graze that face and pass below it. Without the three intra-session
-  // settings (rays from the viewing scans, no grazing rays, a detection mostly seen through)
-  // the face is detected; with them (the test above) it stays.
+  // the first submap graze that face and pass below it. With the merge's settings in place of
+  // the intra-session ones (rays from the viewing scans, no grazing rays, a detection mostly
+  // seen through, ...) the face is detected; with them (the test above) it stays.
   auto submaps = BuildSession();
   const Counts before = Count(submaps);
   IntraSessionPairsConfig config;
