@@ -18,22 +18,24 @@ namespace multisession_mapper {
 namespace core {
 namespace {
 
-// Ground (z = 0), a wall at x = 20 m, and a car (4.5 x 1.8 x 1.5 m box) driving along y at
-// x = 10 m. The sensor is 1.8 m above the ground.
+// Ground (z = 0), a wall at x = wall_x (20 m), and a car (4.5 x 1.8 x 1.5 m box) driving
+// along y at x = car_x (10 m). The sensor is 1.8 m above the ground.
 struct Scene {
   double car_y = 0.0;
   bool car_present = true;
+  double car_x = 10.0;
+  double wall_x = 20.0;
 
   double Raycast(const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {
     double best = std::numeric_limits<double>::infinity();
     if (d.z() < -1e-9) best = -o.z() / d.z();
     if (d.x() > 1e-9) {
-      const double t = (20.0 - o.x()) / d.x();
+      const double t = (wall_x - o.x()) / d.x();
       const Eigen::Vector3d p = o + t * d;
-      if (t > 0 && std::abs(p.y()) < 30.0 && p.z() >= 0.0 && p.z() < 5.0) best = std::min(best, t);
+      if (t > 0 && std::abs(p.y()) < 3.0 * wall_x / 2.0 && p.z() >= 0.0 && p.z() < 5.0) best = std::min(best, t);
     }
     if (car_present) {
-      const Eigen::Vector3d lo(9.1, car_y - 2.25, 0.2), hi(10.9, car_y + 2.25, 1.7);
+      const Eigen::Vector3d lo(car_x - 0.9, car_y - 2.25, 0.2), hi(car_x + 0.9, car_y + 2.25, 1.7);
       double t_near = 0.0, t_far = best;
       bool hit = true;
       for (int a = 0; a < 3 && hit; ++a) {
@@ -77,8 +79,8 @@ LidarScan Scan(const Scene& scene, const Pose3& T_world_sensor, double stamp_s, 
   return scan;
 }
 
-bool OnCarPath(const Eigen::Vector3d& p_world) {
-  return p_world.x() > 8.9 && p_world.x() < 11.1 && p_world.z() > 0.1;
+bool OnCarPath(const Eigen::Vector3d& p_world, double car_x = 10.0) {
+  return p_world.x() > car_x - 1.1 && p_world.x() < car_x + 1.1 && p_world.z() > 0.1;
 }
 
 struct Result {
@@ -167,6 +169,75 @@ TEST(SubmapBuilder, GrowingRemovesTheLowestPartsOfTheMovingCar) {
   EXPECT_LT(growing.car_points, no_growing.car_points);
   EXPECT_LT(growing.car_points, 0.015 * unfiltered.car_points);
   EXPECT_GT(growing.static_points, 0.99 * unfiltered.static_points);
+}
+
+// The robot stands still for 10 s while a car at x = car_x is present for `car_scans` scans
+// and then gone; the wall is 10 m behind the car, so that the beams that hit the car hit
+// the wall once it is gone. Returns the car's points left in the submaps.
+int CarPointsLeft(const SubmapBuilderConfig& config, double car_x, int car_scans, bool moving) {
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+  EXPECT_TRUE(builder.ok()) << builder.status().message();
+  std::mt19937 rng(3);
+  Scene scene;
+  scene.car_x = car_x;
+  scene.wall_x = car_x + 10.0;
+  const Pose3 pose = se3::FromXyzRpy(0, 0, 1.8, 0, 0, 0);
+  for (int i = 0; i < 100; ++i) {
+    scene.car_y = moving ? -20.0 + 0.4 * i : 0.0;
+    scene.car_present = i < car_scans;
+    builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
+  }
+  builder.value().FinishSession();
+  int car_points = 0;
+  for (const Submap& submap : builder.value().TakeFinished()) {
+    for (const Eigen::Vector3d& p : submap.points) {
+      car_points += OnCarPath(submap.T_map_submap * p, car_x);
+    }
+  }
+  return car_points;
+}
+
+// A car crossing 50 m away (one ring of a VLP-16 on it, none on the ground there) is
+// checked up to max_check_range_m, and removed by the majority of its checks.
+TEST(SubmapBuilder, FarCarIsCheckedUpToTheCheckRange) {
+  SubmapBuilderConfig config;
+  const int unfiltered = [&] {
+    SubmapBuilderConfig off = config;
+    off.dynamic_filter.enabled = false;
+    return CarPointsLeft(off, 50.0, 90, true);
+  }();
+  ASSERT_GT(unfiltered, 30) << "the car must leave a trail without the filter";
+  config.dynamic_filter.max_check_range_m = 40.0;
+  const int unchecked = CarPointsLeft(config, 50.0, 90, true);
+  config.dynamic_filter.max_check_range_m = 60.0;
+  const int checked = CarPointsLeft(config, 50.0, 90, true);
+  std::cout << "far car points: " << unfiltered << " unfiltered, " << unchecked
+            << " checked to 40 m, " << checked << " checked to 60 m" << std::endl;
+  EXPECT_EQ(unchecked, unfiltered) << "never checked: all kept";
+  EXPECT_LT(checked, 0.05 * unfiltered);
+}
+
+// A car parked for 94 scans that leaves 6 scans (3 checks) before the end: near, its last
+// three checks saw through it and it goes (the consecutive rule: recent evidence wins); far,
+// three seen-through checks against 47 consistent ones are no majority, and it stays.
+TEST(SubmapBuilder, FarChecksDropOnlyByTheirMajority) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.max_check_range_m = 60.0;
+  config.dynamic_filter.near_range_m = 40.0;
+  const int near_kept = CarPointsLeft(config, 25.0, 94, false);
+  const int far_kept = CarPointsLeft(config, 50.0, 94, false);
+  SubmapBuilderConfig unfiltered = config;
+  unfiltered.dynamic_filter.enabled = false;
+  const int far_all = CarPointsLeft(unfiltered, 50.0, 94, false);
+  config.dynamic_filter.near_range_m = 60.0;
+  const int far_as_near_kept = CarPointsLeft(config, 50.0, 94, false);
+  std::cout << "parked car points left: near " << near_kept << ", far " << far_kept << " of "
+            << far_all << ", far counted as near " << far_as_near_kept << std::endl;
+  ASSERT_GT(far_all, 5);
+  EXPECT_LT(near_kept, 5) << "near: the consecutive rule drops the car that left";
+  EXPECT_EQ(far_kept, far_all) << "far: no majority, kept";
+  EXPECT_LT(far_as_near_kept, 0.2 * far_all)
+      << "with far checks counted as near the consecutive rule drops it";
 }
 
 TEST(SubmapBuilder, ParkedCarIsKept) {
@@ -364,6 +435,9 @@ TEST(SubmapBuilder, ConfigValidation) {
   EXPECT_FALSE(config.Validate().ok());
   config = SubmapBuilderConfig();
   config.dynamic_filter.check_threads = 0;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SubmapBuilderConfig();
+  config.dynamic_filter.near_range_m = 0.0;
   EXPECT_FALSE(config.Validate().ok());
   EXPECT_FALSE(SubmapBuilder::Create(SubmapBuilderConfig(), "").ok());
 }

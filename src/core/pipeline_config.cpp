@@ -72,6 +72,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "margin_base_m", &d.margin_base_m},
       {"in_session_dynamics", "margin_per_m", &d.margin_per_m},
       {"in_session_dynamics", "max_check_range_m", &d.max_check_range_m},
+      {"in_session_dynamics", "near_range_m", &d.near_range_m},
       {"in_session_dynamics", "check_every_n_scans", &d.check_every_n_scans},
       {"in_session_dynamics", "min_seen_through", &d.min_seen_through},
       {"in_session_dynamics", "min_seen_through_ratio", &d.min_seen_through_ratio},

@@ -18,6 +18,9 @@ Status InSessionDynamicFilterConfig::Validate() const {
     return Status::Error("dynamic_filter.margin_base_m must be > 0 and margin_per_m >= 0");
   }
   if (!(max_check_range_m > 0.0)) return Status::Error("dynamic_filter.max_check_range_m must be > 0");
+  if (!(near_range_m > 0.0) || !std::isfinite(near_range_m)) {
+    return Status::Error("dynamic_filter.near_range_m must be > 0");
+  }
   if (check_every_n_scans < 1) return Status::Error("dynamic_filter.check_every_n_scans must be >= 1");
   if (min_seen_through < 1) return Status::Error("dynamic_filter.min_seen_through must be >= 1");
   if (!(min_seen_through_ratio >= 0.0 && min_seen_through_ratio < 1.0)) {
@@ -126,7 +129,8 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
     switch (image.Check(p_sensor, range, margin)) {
       case Visibility::kSeenThrough:
         if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) ++voxel.seen_through;
-        if (voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {
+        if (range <= c.near_range_m &&
+            voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {
           ++voxel.consecutive_seen_through;
         }
         break;
@@ -271,11 +275,13 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     }
   }
   // Growing (see InSessionDynamicFilterConfig::grow_depth).
+  const float near_sq = static_cast<float>(c.near_range_m * c.near_range_m);
   std::vector<std::uint32_t> next;
   for (int depth = 0; depth < c.grow_depth && !frontier.empty(); ++depth) {
     next.clear();
     for (const std::uint32_t u : frontier) {
       const VoxelPoint& from = open->voxels[u];
+      if (from.nearest_range_sq > near_sq) continue;
       const VoxelKey key = ToVoxelKey(from.sum / from.count, config_.voxel_size_m);
       const std::uint64_t latest =
           static_cast<std::uint64_t>(from.last_consistent_scan) + c.grow_max_scan_gap;
@@ -286,6 +292,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
                 VoxelKey(key.x() + dx, key.y() + dy, key.z() + dz));
             if (v == VoxelIndexTable::kEmpty || dynamic[v]) continue;
             if (open->voxels[v].last_consistent_scan > latest) continue;
+            if (open->voxels[v].nearest_range_sq > near_sq) continue;
             dynamic[v] = 1;
             ++stats_.voxels_dropped_grown;
             next.push_back(v);

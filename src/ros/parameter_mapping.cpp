@@ -28,6 +28,7 @@ namespace ros_params {
   F(in_session_dynamics_margin_base_m, s.submaps.dynamic_filter.margin_base_m)              \
   F(in_session_dynamics_margin_per_m, s.submaps.dynamic_filter.margin_per_m)                \
   F(in_session_dynamics_max_check_range_m, s.submaps.dynamic_filter.max_check_range_m)      \
+  F(in_session_dynamics_near_range_m, s.submaps.dynamic_filter.near_range_m)                \
   F(in_session_dynamics_check_every_n_scans, s.submaps.dynamic_filter.check_every_n_scans)  \
   F(in_session_dynamics_min_seen_through, s.submaps.dynamic_filter.min_seen_through)        \
   F(in_session_dynamics_min_seen_through_ratio,                                             \

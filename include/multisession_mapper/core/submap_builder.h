@@ -38,8 +38,19 @@ struct InSessionDynamicFilterConfig {
   /// "consistent"; beyond it "seen through" [m, m/m]. Covers range noise and pose error.
   double margin_base_m = 0.3;
   double margin_per_m = 0.02;
-  /// Points farther than this from the sensor are not checked [m] (sparse beams far away).
-  double max_check_range_m = 40.0;
+  /// Points farther than this from the sensor are not checked [m]. 60 m (the submaps' point
+  /// range): moving cars seen only from 40 m or more, where no ring of a VLP-16 1.8 m up
+  /// measures flat ground, are otherwise never checked at all (campus s00, seeds 1 / 3 / 2:
+  /// 11,589 of the 29,546 kept moving-object points of seed 1 were never checked).
+  double max_check_range_m = 60.0;
+  /// Within this range the checks are "near"; beyond it, up to max_check_range_m, "far".
+  /// Far checks (one ring on a car, grazing ground, a pose tilt of 0.2 deg is 0.2 m at
+  /// 60 m) drop a voxel only by the majority rule (min_seen_through_ratio), not by the
+  /// consecutive rule, and voxels never measured within this range neither grow nor are
+  /// grown into. With far checks counted like near ones, seed 1 lost 0.21 points of static
+  /// SA (terrain and canopy 40-60 m from the route, dropped by their last three far
+  /// checks and grown from there) [m].
+  double near_range_m = 40.0;
   /// Check the open submaps with every n-th scan (costs ~N voxels per check).
   int check_every_n_scans = 2;
   /// Drop a voxel seen through at least this many times ...
