@@ -63,9 +63,15 @@ TEST(RangeImage, OnBeamConsistentSeenThroughOccluded) {
 
 TEST(RangeImage, NoReturnIsFreeOnlyUpToItsRange) {
   const RangeImage image(GroundAndWall(true), RangeImageConfig());
-  // Looking backwards at +5 deg there is nothing: free space, up to no_return_free_range_m.
+  // Looking backwards at +5 deg there is nothing: free space, up to no_return_free_range_m
+  // (60 m) and in front of the ground that the -3 deg beam measured at 34.4 m (next test).
   EXPECT_EQ(image.Check(OnBeam(10.0, 5.0, 180.0), 0.3), Visibility::kSeenThrough);
-  EXPECT_EQ(image.Check(OnBeam(50.0, 5.0, 180.0), 0.3), Visibility::kUnknown);
+  EXPECT_EQ(image.Check(OnBeam(32.0, 5.0, 180.0), 0.3), Visibility::kSeenThrough);
+  RangeImageConfig shorter;
+  shorter.no_return_free_range_m = 30.0;
+  const RangeImage short_image(GroundAndWall(true), shorter);
+  EXPECT_EQ(short_image.Check(OnBeam(10.0, 5.0, 180.0), 0.3), Visibility::kSeenThrough);
+  EXPECT_EQ(short_image.Check(OnBeam(32.0, 5.0, 180.0), 0.3), Visibility::kUnknown);
 }
 
 TEST(RangeImage, GroundBetweenBeamsIsNeverSeenThrough) {
