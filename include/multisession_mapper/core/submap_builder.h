@@ -9,7 +9,8 @@
 // space where the point was). A finished submap stays open to these checks for `tail_m` more
 // metres of driving, so objects that were still in view at its end are judged too; then voxels
 // seen through at least `min_seen_through` times and more often than measured, or seen
-// through in each of their last `min_consecutive_seen_through` checks, are dropped.
+// through in each of their last `min_consecutive_seen_through` checks, are dropped. Checks
+// beyond `near_range_m` (40 m) count toward the first rule only.
 #pragma once
 
 #include <cstdint>
@@ -40,8 +41,8 @@ struct InSessionDynamicFilterConfig {
   double margin_per_m = 0.02;
   /// Points farther than this from the sensor are not checked [m]. 60 m (the submaps' point
   /// range): moving cars seen only from 40 m or more, where no ring of a VLP-16 1.8 m up
-  /// measures flat ground, are otherwise never checked at all (campus s00, seeds 1 / 3 / 2:
-  /// 11,589 of the 29,546 kept moving-object points of seed 1 were never checked).
+  /// measures flat ground, are otherwise never checked at all (campus seed 1 s00 with 40 m:
+  /// 11,589 of the 29,546 kept moving-object points were never checked).
   double max_check_range_m = 60.0;
   /// Within this range the checks are "near"; beyond it, up to max_check_range_m, "far".
   /// Far checks (one ring on a car, grazing ground, a pose tilt of 0.2 deg is 0.2 m at
