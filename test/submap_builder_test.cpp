@@ -18,8 +18,9 @@ namespace multisession_mapper {
 namespace core {
 namespace {
 
-// Ground (z = 0), a wall at x = wall_x (20 m), and a car (4.5 x 1.8 x 1.5 m box) driving
-// along y at x = car_x (10 m). The sensor is 1.8 m above the ground.
+// Ground (z = 0), a wall at x = wall_x (20 m; 5 m high, |y| < 1.5 wall_x), and a car
+// (4.5 x 1.8 x 1.5 m box) driving along y at x = car_x (10 m). The sensor is 1.8 m above
+// the ground.
 struct Scene {
   double car_y = 0.0;
   bool car_present = true;
@@ -81,6 +82,17 @@ LidarScan Scan(const Scene& scene, const Pose3& T_world_sensor, double stamp_s, 
 
 bool OnCarPath(const Eigen::Vector3d& p_world, double car_x = 10.0) {
   return p_world.x() > car_x - 1.1 && p_world.x() < car_x + 1.1 && p_world.z() > 0.1;
+}
+
+// Points of the builder's finished submaps on the car's path (map frame).
+int CarPointsIn(SubmapBuilder* builder, double car_x = 10.0) {
+  int car_points = 0;
+  for (const Submap& submap : builder->TakeFinished()) {
+    for (const Eigen::Vector3d& p : submap.points) {
+      car_points += OnCarPath(submap.T_map_submap * p, car_x);
+    }
+  }
+  return car_points;
 }
 
 struct Result {
@@ -188,24 +200,16 @@ int CarPointsLeft(const SubmapBuilderConfig& config, double car_x, int car_scans
     builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
   }
   builder.value().FinishSession();
-  int car_points = 0;
-  for (const Submap& submap : builder.value().TakeFinished()) {
-    for (const Eigen::Vector3d& p : submap.points) {
-      car_points += OnCarPath(submap.T_map_submap * p, car_x);
-    }
-  }
-  return car_points;
+  return CarPointsIn(&builder.value(), car_x);
 }
 
 // A car crossing 50 m away (one ring of a VLP-16 on it, none on the ground there) is
 // checked up to max_check_range_m, and removed by the majority of its checks.
 TEST(SubmapBuilder, FarCarIsCheckedUpToTheCheckRange) {
   SubmapBuilderConfig config;
-  const int unfiltered = [&] {
-    SubmapBuilderConfig off = config;
-    off.dynamic_filter.enabled = false;
-    return CarPointsLeft(off, 50.0, 90, true);
-  }();
+  config.dynamic_filter.enabled = false;
+  const int unfiltered = CarPointsLeft(config, 50.0, 90, true);
+  config.dynamic_filter.enabled = true;
   ASSERT_GT(unfiltered, 30) << "the car must leave a trail without the filter";
   config.dynamic_filter.max_check_range_m = 40.0;
   const int unchecked = CarPointsLeft(config, 50.0, 90, true);
@@ -254,11 +258,7 @@ TEST(SubmapBuilder, ParkedCarIsKept) {
     builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
   }
   builder.value().FinishSession();
-  int car_points = 0;
-  for (const Submap& submap : builder.value().TakeFinished()) {
-    for (const Eigen::Vector3d& p : submap.points) car_points += OnCarPath(submap.T_map_submap * p);
-  }
-  EXPECT_GT(car_points, 300);
+  EXPECT_GT(CarPointsIn(&builder.value()), 300);
   EXPECT_EQ(builder.value().stats().voxels_dropped_dynamic < 0.01 * builder.value().stats().voxels_kept, true)
       << builder.value().stats().voxels_dropped_dynamic << " dropped of "
       << builder.value().stats().voxels_kept;

@@ -261,6 +261,9 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   submap.views.clear();
   submap.views.reserve(open->voxels.size());
   std::vector<std::uint8_t> dynamic(open->voxels.size(), 0);
+  // Growing starts only from voxels measured within near_range_m, and enters only such
+  // voxels (see InSessionDynamicFilterConfig::near_range_m).
+  const float near_sq = static_cast<float>(c.near_range_m * c.near_range_m);
   std::vector<std::uint32_t> frontier;
   for (std::size_t i = 0; i < open->voxels.size() && c.enabled; ++i) {
     const VoxelPoint& voxel = open->voxels[i];
@@ -271,17 +274,15 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
                       voxel.consecutive_seen_through >= c.min_consecutive_seen_through;
     if (mostly_free || left) {
       dynamic[i] = 1;
-      frontier.push_back(static_cast<std::uint32_t>(i));
+      if (voxel.nearest_range_sq <= near_sq) frontier.push_back(static_cast<std::uint32_t>(i));
     }
   }
   // Growing (see InSessionDynamicFilterConfig::grow_depth).
-  const float near_sq = static_cast<float>(c.near_range_m * c.near_range_m);
   std::vector<std::uint32_t> next;
   for (int depth = 0; depth < c.grow_depth && !frontier.empty(); ++depth) {
     next.clear();
     for (const std::uint32_t u : frontier) {
       const VoxelPoint& from = open->voxels[u];
-      if (from.nearest_range_sq > near_sq) continue;
       const VoxelKey key = ToVoxelKey(from.sum / from.count, config_.voxel_size_m);
       const std::uint64_t latest =
           static_cast<std::uint64_t>(from.last_consistent_scan) + c.grow_max_scan_gap;
