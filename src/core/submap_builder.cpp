@@ -85,6 +85,7 @@ void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_ju
   open.submap.id = next_id_++;
   open.submap.T_map_submap = T_odom_sensor;
   open.submap.started_at_jump_m = started_at_jump_m;
+  open.first_scan = stats_.scans;
   open_.push_back(std::move(open));
 }
 
@@ -253,6 +254,21 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   }
 }
 
+bool SubmapBuilder::OnlyGroundBelowMeasuredSince(const OpenSubmap& open, std::uint32_t v,
+                                                 std::uint64_t since_scan) const {
+  const VoxelPoint& voxel = open.voxels[v];
+  const auto last_hit = [&open](const VoxelPoint& x) {
+    return open.first_scan + static_cast<std::uint64_t>(x.views.last_scan);
+  };
+  if (last_hit(voxel) > since_scan) return false;
+  const VoxelKey key = ToVoxelKey(voxel.sum / voxel.count, config_.voxel_size_m);
+  const std::uint32_t below = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 1));
+  if (below == VoxelIndexTable::kEmpty || last_hit(open.voxels[below]) <= since_scan) return false;
+  // The voxel below is the surface (nothing under it): `v` is the layer right above the
+  // ground, not a voxel of a wall or pole whose face the rings sweep over as the robot moves.
+  return open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 2)) == VoxelIndexTable::kEmpty;
+}
+
 void SubmapBuilder::Finalize(OpenSubmap* open) {
   const InSessionDynamicFilterConfig& c = config_.dynamic_filter;
   Submap& submap = open->submap;
@@ -292,8 +308,11 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
             const std::uint32_t v = open->voxel_index.Find(
                 VoxelKey(key.x() + dx, key.y() + dy, key.z() + dz));
             if (v == VoxelIndexTable::kEmpty || dynamic[v]) continue;
-            if (open->voxels[v].last_consistent_scan > latest) continue;
             if (open->voxels[v].nearest_range_sq > near_sq) continue;
+            if (open->voxels[v].last_consistent_scan > latest &&
+                !(c.grow_over_measured_ground && OnlyGroundBelowMeasuredSince(*open, v, latest))) {
+              continue;
+            }
             dynamic[v] = 1;
             ++stats_.voxels_dropped_grown;
             next.push_back(v);

@@ -38,6 +38,8 @@ namespace ros_params {
   F(in_session_dynamics_tail_m, s.submaps.dynamic_filter.tail_m)                            \
   F(in_session_dynamics_grow_depth, s.submaps.dynamic_filter.grow_depth)                    \
   F(in_session_dynamics_grow_max_scan_gap, s.submaps.dynamic_filter.grow_max_scan_gap)      \
+  F(in_session_dynamics_grow_over_measured_ground,                                          \
+    s.submaps.dynamic_filter.grow_over_measured_ground)                                     \
   F(in_session_dynamics_no_return_free_range_m,                                             \
     s.submaps.dynamic_filter.range_image.no_return_free_range_m)                            \
   F(in_session_dynamics_angular_uncertainty_rad,                                            \

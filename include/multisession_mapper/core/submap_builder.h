@@ -74,6 +74,14 @@ struct InSessionDynamicFilterConfig {
   /// stay. Up to `grow_depth` voxels deep (0 disables) [voxels, scans].
   int grow_depth = 2;
   int grow_max_scan_gap = 4;
+  /// The lowest layer of an object that stood on measured ground (feet, wheels): a beam
+  /// through a voxel 0.1 m above the ground lands on the ground just behind it, within the
+  /// margin, so later checks keep it consistent and the rule above refuses it. With this on,
+  /// the growing also enters a neighbour that received no point later than
+  /// `grow_max_scan_gap` scans after the dropped voxel was last consistent, while the voxel
+  /// right below it (the ground) did: the place was measured again after the object left,
+  /// and nothing was there.
+  bool grow_over_measured_ground = true;
   /// Threads of each visibility check, the calling one included (same result with 1: each
   /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
   /// runs partly on the core the odometry leaves idle while it waits for scans. In [1, 64].
@@ -165,6 +173,7 @@ class SubmapBuilder {
     std::vector<VoxelPoint> voxels;
     VoxelIndexTable voxel_index;
     bool full = false;           ///< a newer submap has started; only checks remain
+    std::uint64_t first_scan = 0;  ///< scan counter of its first scan (views' scan 0)
     double tail_driven_m = 0.0;  ///< driving since it became full
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
@@ -177,6 +186,9 @@ class SubmapBuilder {
   void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open,
                        std::size_t begin, std::size_t end);
   void Finalize(OpenSubmap* open);
+  /// Voxel `v` received no point after scan `since_scan`, and the voxel right below it did.
+  bool OnlyGroundBelowMeasuredSince(const OpenSubmap& open, std::uint32_t v,
+                                    std::uint64_t since_scan) const;
 
   SubmapBuilderConfig config_;
   std::string session_;
