@@ -61,6 +61,39 @@ TEST(RangeImage, OnBeamConsistentSeenThroughOccluded) {
   EXPECT_EQ(image.Check(OnBeam(wall + 5.0, 1.0, 0.1), 0.3), Visibility::kOccluded);
 }
 
+// A pole 8 m ahead in GroundAndWall's scan: every return at azimuth -2 to 1.1 deg and
+// elevation -5 deg or more comes from 8 m (the beams up to 1.0 deg hit it).
+LidarScan WithPole(LidarScan scan) {
+  for (LidarPoint& p : scan.points) {
+    const Eigen::Vector3d d = p.position_m.cast<double>().normalized();
+    const double az = std::atan2(d.y(), d.x()) * 180.0 / M_PI;
+    if (az > -2.0 && az < 1.1 && std::asin(d.z()) * 180.0 / M_PI > -5.0) {
+      p.position_m = (d * 8.0).cast<float>();
+    }
+  }
+  return scan;
+}
+
+TEST(RangeImage, ASurfaceInANeighbouringBinGuardsItsEdge) {
+  // A point at the pole's side edge, as a later pose sees it: it falls into the 1.2-1.6 deg
+  // bin, whose beams just missed the pole and hit the wall 15 m away. The bin before held the
+  // pole at 8 m: with the edge guard the point is not seen through; without it, it is. A
+  // point 8 m away in open space (3 deg: the wall in all three bins) is seen through either
+  // way. The guard is off by default (RangeImageConfig::edge_guard_columns).
+  RangeImageConfig config;
+  config.edge_guard_columns = 1;
+  const RangeImage guarded(WithPole(GroundAndWall(true)), config);
+  config.edge_guard_columns = 0;
+  const RangeImage unguarded(WithPole(GroundAndWall(true)), config);
+  const Eigen::Vector3d edge = OnBeam(8.0, 1.0, 1.5);
+  EXPECT_EQ(unguarded.Check(edge, 0.3), Visibility::kSeenThrough);
+  EXPECT_EQ(guarded.Check(edge, 0.3), Visibility::kUnknown);
+  EXPECT_EQ(guarded.Check(OnBeam(8.0, 1.0, 3.0), 0.3), Visibility::kSeenThrough);
+  // Only a surface at the point's range guards it: 12 m away, beyond the pole, it is free.
+  EXPECT_EQ(guarded.Check(OnBeam(12.0, 1.0, 1.5), 0.3), Visibility::kSeenThrough);
+  EXPECT_EQ(guarded.Check(OnBeam(8.0, 1.0, 0.5), 0.3), Visibility::kConsistent);
+}
+
 TEST(RangeImage, NoReturnIsFreeOnlyUpToItsRange) {
   const RangeImage image(GroundAndWall(true), RangeImageConfig());
   // Looking backwards at +5 deg there is nothing: free space, up to no_return_free_range_m
@@ -182,6 +215,9 @@ TEST(RangeImage, ConfigValidation) {
   EXPECT_FALSE(c.Validate().ok());
   c = RangeImageConfig();
   c.angular_uncertainty_rad = -0.001;
+  EXPECT_FALSE(c.Validate().ok());
+  c = RangeImageConfig();
+  c.edge_guard_columns = -1;
   EXPECT_FALSE(c.Validate().ok());
 }
 

@@ -83,6 +83,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "grow_over_measured_ground", &d.grow_over_measured_ground},
       {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
       {"in_session_dynamics", "angular_uncertainty_rad", &d.range_image.angular_uncertainty_rad},
+      {"in_session_dynamics", "edge_guard_columns", &d.range_image.edge_guard_columns},
       {"in_session_dynamics", "check_threads", &d.check_threads},
       {"intra_session_pairs", "enabled", &s.intra_pairs.enabled},
       {"intra_session_pairs", "neighbours", &s.intra_pairs.neighbours},

@@ -23,6 +23,9 @@ Status RangeImageConfig::Validate() const {
   if (!(max_ring_gap_rad > 0.0 && max_ring_gap_rad < 0.5)) {
     return Status::Error("range_image.max_ring_gap_rad must be in (0, 0.5)");
   }
+  if (edge_guard_columns < 0 || edge_guard_columns > 8) {
+    return Status::Error("range_image.edge_guard_columns must be in [0, 8]");
+  }
   if (!(ring_gap_rad > 0.0 && ring_gap_rad < 0.2)) {
     return Status::Error("range_image.ring_gap_rad must be in (0, 0.2)");
   }
@@ -206,6 +209,16 @@ double RangeImage::RangeSlope(int ring, int column) const {
   return std::isfinite(slope) ? slope : 0.0;
 }
 
+bool RangeImage::BesideASurface(int ring, int column, double range, double margin_m) const {
+  const float* row = ranges_m_.data() + static_cast<std::size_t>(ring) * columns_;
+  for (int offset = 1; offset <= config_.edge_guard_columns; ++offset) {
+    for (const int c : {(column + offset) % columns_, (column + columns_ - offset) % columns_}) {
+      if (row[c] > 0.0f && std::abs(row[c] - range) <= margin_m) return true;
+    }
+  }
+  return false;
+}
+
 Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double margin_m) const {
   return Check(point_sensor, point_sensor.norm(), margin_m);
 }
@@ -236,7 +249,11 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double range,
       margin += RangeSlope(ring, column) * (config_.angular_uncertainty_rad +
                                             std::abs(std::atan(tangent) - ring_elevations_rad_[ring]));
     }
-    return classify(measured, margin);
+    const Visibility vis = classify(measured, margin);
+    if (vis == Visibility::kSeenThrough && BesideASurface(ring, column, range, margin_m)) {
+      return Visibility::kUnknown;
+    }
+    return vis;
   }
 
   // Between two beams: free only when both passed beyond the point. On ground seen at a

@@ -44,6 +44,8 @@ namespace ros_params {
     s.submaps.dynamic_filter.range_image.no_return_free_range_m)                            \
   F(in_session_dynamics_angular_uncertainty_rad,                                            \
     s.submaps.dynamic_filter.range_image.angular_uncertainty_rad)                           \
+  F(in_session_dynamics_edge_guard_columns,                                                 \
+    s.submaps.dynamic_filter.range_image.edge_guard_columns)                                \
   F(intra_session_pairs_enabled, s.intra_pairs.enabled)                                     \
   F(intra_session_pairs_neighbours, s.intra_pairs.neighbours)                               \
   F(intra_session_pairs_min_pass_incidence_rad, s.intra_pairs.min_pass_incidence_rad)       \

@@ -45,6 +45,16 @@ struct RangeImageConfig {
   /// two slopes, so the edge of an object does not widen the margin). Without it, 0.2 deg of
   /// tilt turns ground 20-40 m away into "seen through". Default 0.0035 rad (0.2 deg); 0 disables.
   double angular_uncertainty_rad = 0.0035;
+  /// A point on a beam is seen through only when the beams of the `edge_guard_columns`
+  /// azimuth bins on either side did not measure a surface at its range (within the margin):
+  /// a voxel at the side edge of a pole, a parked car or a person projects, as the robot
+  /// moves, into a bin whose beam just missed the object and hit what lies behind. 0 (the
+  /// default) disables. Campus s00 alone, true origins, seeds 1 / 3, with 1: static SA
+  /// 99.56 -> 99.61 / 99.68 -> 99.71 % (parked-car points lost 7,973 -> 6,996 / 8,188 ->
+  /// 7,573), moving objects removed 94.78 -> 94.69 / 95.05 -> 94.97 %: SA is met and removal
+  /// is not, so it stays off. Counting any surface at or in front of the point: SA 99.63 /
+  /// 99.73 %, removed 94.58 / 94.84 %.
+  int edge_guard_columns = 0;
 
   Status Validate() const;
 };
@@ -94,6 +104,9 @@ class RangeImage {
   /// |d range / d elevation| of the surface measured around a pixel [m/rad]: the smaller of
   /// the slopes to the next ring above and below in the same column; 0 when neither exists.
   double RangeSlope(int ring, int column) const;
+  /// A beam within edge_guard_columns bins of `column` on `ring` measured a surface at most
+  /// `range` + `margin_m` away.
+  bool BesideASurface(int ring, int column, double range, double margin_m) const;
 
   RangeImageConfig config_;
   int columns_ = 0;
