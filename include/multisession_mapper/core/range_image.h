@@ -104,8 +104,8 @@ class RangeImage {
   /// |d range / d elevation| of the surface measured around a pixel [m/rad]: the smaller of
   /// the slopes to the next ring above and below in the same column; 0 when neither exists.
   double RangeSlope(int ring, int column) const;
-  /// A beam within edge_guard_columns bins of `column` on `ring` measured a surface at most
-  /// `range` + `margin_m` away.
+  /// A beam within edge_guard_columns bins of `column` on `ring` measured a surface within
+  /// `margin_m` of `range` (see RangeImageConfig::edge_guard_columns).
   bool BesideASurface(int ring, int column, double range, double margin_m) const;
 
   RangeImageConfig config_;
