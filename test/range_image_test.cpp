@@ -62,7 +62,7 @@ TEST(RangeImage, OnBeamConsistentSeenThroughOccluded) {
 }
 
 // A pole 8 m ahead in GroundAndWall's scan: every return at azimuth -2 to 1.1 deg and
-// elevation -5 deg or more comes from 8 m (the beams up to 1.0 deg hit it).
+// elevation above -5 deg comes from 8 m (the beams up to 1.0 deg hit it).
 LidarScan WithPole(LidarScan scan) {
   for (LidarPoint& p : scan.points) {
     const Eigen::Vector3d d = p.position_m.cast<double>().normalized();

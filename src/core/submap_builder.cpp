@@ -254,8 +254,9 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   }
 }
 
-bool SubmapBuilder::OnlyGroundBelowMeasuredSince(const OpenSubmap& open, std::uint32_t v,
-                                                 std::uint64_t since_scan) const {
+bool SubmapBuilder::OnlyGroundBelowMeasuredSince(const OpenSubmap& open,
+                                                 const std::vector<std::uint8_t>& dynamic,
+                                                 std::uint32_t v, std::uint64_t since_scan) const {
   const VoxelPoint& voxel = open.voxels[v];
   const auto last_hit = [&open](const VoxelPoint& x) {
     return open.first_scan + static_cast<std::uint64_t>(x.views.last_scan);
@@ -263,7 +264,10 @@ bool SubmapBuilder::OnlyGroundBelowMeasuredSince(const OpenSubmap& open, std::ui
   if (last_hit(voxel) > since_scan) return false;
   const VoxelKey key = ToVoxelKey(voxel.sum / voxel.count, config_.voxel_size_m);
   const std::uint32_t below = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 1));
-  if (below == VoxelIndexTable::kEmpty || last_hit(open.voxels[below]) <= since_scan) return false;
+  if (below == VoxelIndexTable::kEmpty || dynamic[below] ||
+      last_hit(open.voxels[below]) <= since_scan) {
+    return false;
+  }
   // The voxel below is the surface (nothing under it): `v` is the layer right above the
   // ground, not a voxel of a wall or pole whose face the rings sweep over as the robot moves.
   return open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 2)) == VoxelIndexTable::kEmpty;
@@ -280,7 +284,17 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   // Growing starts only from voxels measured within near_range_m, and enters only such
   // voxels (see InSessionDynamicFilterConfig::near_range_m).
   const float near_sq = static_cast<float>(c.near_range_m * c.near_range_m);
-  std::vector<std::uint32_t> frontier;
+  // Each frontier voxel carries the scan after which its neighbours must not have been
+  // measured: its own last consistent check + grow_max_scan_gap, or, for a voxel entered by
+  // the ground rule (consistent up to the end, it was never free), the limit it inherited.
+  struct Source {
+    std::uint32_t voxel;
+    std::uint64_t latest;
+  };
+  const auto own_limit = [&](std::uint32_t i) {
+    return static_cast<std::uint64_t>(open->voxels[i].last_consistent_scan) + c.grow_max_scan_gap;
+  };
+  std::vector<Source> frontier;
   for (std::size_t i = 0; i < open->voxels.size() && c.enabled; ++i) {
     const VoxelPoint& voxel = open->voxels[i];
     const bool mostly_free =
@@ -290,18 +304,17 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
                       voxel.consecutive_seen_through >= c.min_consecutive_seen_through;
     if (mostly_free || left) {
       dynamic[i] = 1;
-      if (voxel.nearest_range_sq <= near_sq) frontier.push_back(static_cast<std::uint32_t>(i));
+      const auto index = static_cast<std::uint32_t>(i);
+      if (voxel.nearest_range_sq <= near_sq) frontier.push_back({index, own_limit(index)});
     }
   }
   // Growing (see InSessionDynamicFilterConfig::grow_depth).
-  std::vector<std::uint32_t> next;
+  std::vector<Source> next;
   for (int depth = 0; depth < c.grow_depth && !frontier.empty(); ++depth) {
     next.clear();
-    for (const std::uint32_t u : frontier) {
-      const VoxelPoint& from = open->voxels[u];
+    for (const Source& u : frontier) {
+      const VoxelPoint& from = open->voxels[u.voxel];
       const VoxelKey key = ToVoxelKey(from.sum / from.count, config_.voxel_size_m);
-      const std::uint64_t latest =
-          static_cast<std::uint64_t>(from.last_consistent_scan) + c.grow_max_scan_gap;
       for (int dx = -1; dx <= 1; ++dx) {
         for (int dy = -1; dy <= 1; ++dy) {
           for (int dz = -1; dz <= 1; ++dz) {
@@ -309,13 +322,16 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
                 VoxelKey(key.x() + dx, key.y() + dy, key.z() + dz));
             if (v == VoxelIndexTable::kEmpty || dynamic[v]) continue;
             if (open->voxels[v].nearest_range_sq > near_sq) continue;
-            if (open->voxels[v].last_consistent_scan > latest &&
-                !(c.grow_over_measured_ground && OnlyGroundBelowMeasuredSince(*open, v, latest))) {
+            if (open->voxels[v].last_consistent_scan <= u.latest) {
+              next.push_back({v, own_limit(v)});
+            } else if (c.grow_over_measured_ground &&
+                       OnlyGroundBelowMeasuredSince(*open, dynamic, v, u.latest)) {
+              next.push_back({v, u.latest});
+            } else {
               continue;
             }
             dynamic[v] = 1;
             ++stats_.voxels_dropped_grown;
-            next.push_back(v);
           }
         }
       }
