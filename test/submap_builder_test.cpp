@@ -291,7 +291,8 @@ std::pair<int, int> PedestrianPointsLeft(const SubmapBuilderConfig& config, int 
 // below it did: grown over the measured ground, it goes too. A pedestrian that never leaves
 // loses nothing more to the rule (10 m away the check itself drops part of its top as the
 // robot's rings sweep over it, and growing spreads from there; the rule must not add to it:
-// without its "nothing below the ground" condition it took 5 of the 29 points left). The foot here is one voxel.
+// without its "nothing below the ground" condition it took 5 of the 29 points left). The foot
+// here is one voxel.
 TEST(SubmapBuilder, FeetAreGrownOverTheGroundMeasuredAfterThePedestrianLeft) {
   SubmapBuilderConfig config;
   config.dynamic_filter.enabled = false;

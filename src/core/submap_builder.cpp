@@ -256,13 +256,12 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
 
 bool SubmapBuilder::OnlyGroundBelowMeasuredSince(const OpenSubmap& open,
                                                  const std::vector<std::uint8_t>& dynamic,
-                                                 std::uint32_t v, std::uint64_t since_scan) const {
-  const VoxelPoint& voxel = open.voxels[v];
+                                                 std::uint32_t v, const VoxelKey& key,
+                                                 std::uint64_t since_scan) const {
   const auto last_hit = [&open](const VoxelPoint& x) {
     return open.first_scan + static_cast<std::uint64_t>(x.views.last_scan);
   };
-  if (last_hit(voxel) > since_scan) return false;
-  const VoxelKey key = ToVoxelKey(voxel.sum / voxel.count, config_.voxel_size_m);
+  if (last_hit(open.voxels[v]) > since_scan) return false;
   const std::uint32_t below = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 1));
   if (below == VoxelIndexTable::kEmpty || dynamic[below] ||
       last_hit(open.voxels[below]) <= since_scan) {
@@ -318,14 +317,14 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
       for (int dx = -1; dx <= 1; ++dx) {
         for (int dy = -1; dy <= 1; ++dy) {
           for (int dz = -1; dz <= 1; ++dz) {
-            const std::uint32_t v = open->voxel_index.Find(
-                VoxelKey(key.x() + dx, key.y() + dy, key.z() + dz));
+            const VoxelKey neighbour(key.x() + dx, key.y() + dy, key.z() + dz);
+            const std::uint32_t v = open->voxel_index.Find(neighbour);
             if (v == VoxelIndexTable::kEmpty || dynamic[v]) continue;
             if (open->voxels[v].nearest_range_sq > near_sq) continue;
             if (open->voxels[v].last_consistent_scan <= u.latest) {
               next.push_back({v, own_limit(v)});
             } else if (c.grow_over_measured_ground &&
-                       OnlyGroundBelowMeasuredSince(*open, dynamic, v, u.latest)) {
+                       OnlyGroundBelowMeasuredSince(*open, dynamic, v, neighbour, u.latest)) {
               next.push_back({v, u.latest});
             } else {
               continue;

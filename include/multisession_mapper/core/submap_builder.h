@@ -192,12 +192,12 @@ class SubmapBuilder {
   void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open,
                        std::size_t begin, std::size_t end);
   void Finalize(OpenSubmap* open);
-  /// Voxel `v` received no point after scan `since_scan`, the voxel right below it did and is
-  /// not `dynamic`, and nothing lies below that one
+  /// Voxel `v` (at `key`) received no point after scan `since_scan`, the voxel right below it
+  /// did and is not `dynamic`, and nothing lies below that one
   /// (InSessionDynamicFilterConfig::grow_over_measured_ground).
   bool OnlyGroundBelowMeasuredSince(const OpenSubmap& open,
                                     const std::vector<std::uint8_t>& dynamic, std::uint32_t v,
-                                    std::uint64_t since_scan) const;
+                                    const VoxelKey& key, std::uint64_t since_scan) const;
 
   SubmapBuilderConfig config_;
   std::string session_;
