@@ -52,7 +52,7 @@ Status AddFirstSession(const SessionResult& session, const SessionRecord& record
 
 std::vector<std::string> SessionRecordFiles(const std::string& session) {
   return {"dynamics/" + session + "_removed.pcd", "dynamics/" + session + "_mended.pcd",
-          "place_recognition/" + session + ".csv"};
+          "dynamics/" + session + "_held.pcd", "place_recognition/" + session + ".csv"};
 }
 
 void RetireSessionRecords(int keep, MapContents* map) {

@@ -75,6 +75,8 @@ std::string ChangeLogYaml(const MergeReport& report, const SessionRecord& record
   out << YAML::Key << "points_removed" << YAML::Value << report.points_removed;
   out << YAML::Key << "points_propagated" << YAML::Value << report.points_propagated;
   out << YAML::Key << "points_mended" << YAML::Value << report.points_mended;
+  out << YAML::Key << "points_held_back" << YAML::Value << report.points_held_back;
+  out << YAML::Key << "objects_held_back" << YAML::Value << report.objects_held_back;
   out << YAML::Key << "history_changes" << YAML::Value << YAML::BeginSeq;
   for (const SubmapChange& c : report.changes) {
     out << YAML::Flow << YAML::BeginMap << YAML::Key << "session" << YAML::Value << c.session
@@ -116,7 +118,7 @@ Status MapFusionConfig::Validate() const {
     return Status::Error("fusion.propagate_radius_m must be >= 0");
   }
   if (record_sessions < 0) return Status::Error("fusion.record_sessions must be >= 0 (0: all)");
-  return Status::Ok();
+  return hold.Validate();
 }
 
 Status SessionMergerConfig::Validate() const {
@@ -599,12 +601,6 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     added_to_history[h].push_back(pose_of_history(h).inverse() * p_map);
     return true;
   };
-  std::map<std::size_t, PointVector> mended_added;  // history index -> mended points, map frame
-  for (const auto& [h, points] : mended) {
-    for (const Eigen::Vector3d& p : points) {
-      if (add_to_history(h, p)) mended_added[h].push_back(p);
-    }
-  }
   // Per new submap (in parallel, the grids are only read): its overlap with the history, and
   // when that makes it fused, its static points with no history point near (map frame).
   std::vector<std::uint8_t> fused(session.submaps.size(), 0);  // not vector<bool>: threads
@@ -633,6 +629,43 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       if (!fusion_grid.Near(p)) fusion_candidates[c].push_back(p);
     }
   });
+  // New objects among the points to add (mended, then fused) are held back.
+  PointVector candidates, removed_map, held_map;
+  for (const auto& [h, points] : mended) {
+    candidates.insert(candidates.end(), points.begin(), points.end());
+  }
+  for (std::size_t c = 0; c < session.submaps.size(); ++c) {
+    if (!fused[c]) continue;
+    candidates.insert(candidates.end(), fusion_candidates[c].begin(),
+                      fusion_candidates[c].end());
+  }
+  std::vector<PlacedPoints> history_placed;
+  for (std::size_t h = 0; h < map->submaps.size(); ++h) {
+    if (map->submaps[h].state != SubmapState::kActive) continue;
+    history_placed.push_back({&history_points[h], pose_of_history(h)});
+    const auto rm = removed.find(h);
+    if (rm == removed.end()) continue;
+    for (std::uint32_t k : rm->second) {
+      removed_map.push_back(pose_of_history(h) * map->submaps[h].points[k]);
+    }
+  }
+  StatusOr<NewObjectHoldResult> hold =
+      HoldBackNewObjects(config_.fusion.hold, candidates, history_placed, removed_map);
+  if (!hold.ok()) return hold.status();
+  const std::vector<std::uint8_t>& held = hold.value().held;
+  report.objects_held_back = hold.value().groups_held;
+  std::size_t next_candidate = 0;
+  auto not_held = [&](const Eigen::Vector3d& p) {
+    if (!held[next_candidate++]) return true;
+    held_map.push_back(p);
+    return false;
+  };
+  std::map<std::size_t, PointVector> mended_added;  // history index -> mended points, map frame
+  for (const auto& [h, points] : mended) {
+    for (const Eigen::Vector3d& p : points) {
+      if (not_held(p) && add_to_history(h, p)) mended_added[h].push_back(p);
+    }
+  }
   std::vector<std::uint32_t> added_ids, fused_ids;
   std::size_t fusion_points = 0;
   for (std::size_t c = 0; c < session.submaps.size(); ++c) {
@@ -642,9 +675,10 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     }
     fused_ids.push_back(session.submaps[c].id);
     for (const Eigen::Vector3d& p : fusion_candidates[c]) {
-      fusion_points += add_to_history(nearest_history(p, partners[c]), p);
+      if (not_held(p)) fusion_points += add_to_history(nearest_history(p, partners[c]), p);
     }
   }
+  report.points_held_back = held_map.size();
 
   report.update_fusion_s = SecondsSince(fusion_start);
   const auto database_start = std::chrono::steady_clock::now();
@@ -745,6 +779,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   }
   map->clouds["dynamics/" + record.name + "_removed.pcd"] = std::move(all_removed);
   map->clouds["dynamics/" + record.name + "_mended.pcd"] = std::move(all_mended);
+  map->clouds["dynamics/" + record.name + "_held.pcd"] = std::move(held_map);
   RetireSessionRecords(config_.fusion.record_sessions, map);
   report.update_s = SecondsSince(update_start);
   report.total_s = SecondsSince(start);

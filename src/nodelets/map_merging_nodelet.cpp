@@ -236,7 +236,8 @@ class MapMergingNodelet : public nodelet::Nodelet {
             << " by sequence, " << r.proximity_loops
             << " proximity loops, " << r.submaps_added << " submaps added, " << r.submaps_fused
             << " fused, " << r.points_removed << " dynamic points removed, " << r.points_mended
-            << " mended, merge " << r.total_s << " s";
+            << " mended, " << r.points_held_back << " of new objects held back, merge "
+            << r.total_s << " s";
     const core::Status saved = SaveLocked(map_dir_);
     summary << (saved.ok() ? "; saved to " + map_dir_ : "; NOT saved: " + saved.message());
     for (const core::SubmapChange& change : r.changes) {

@@ -142,7 +142,11 @@ namespace ros_params {
   F(map_update_fuse_overlap_distance_m, g.fusion.overlap_distance_m)                          \
   F(map_update_fuse_voxel_m, g.fusion.voxel_m)                                                \
   F(map_update_max_dynamic_fraction, g.fusion.max_dynamic_fraction)                          \
-  F(map_update_propagate_radius_m, g.fusion.propagate_radius_m)
+  F(map_update_propagate_radius_m, g.fusion.propagate_radius_m)                              \
+  F(map_update_hold_new_objects, g.fusion.hold.enabled)                                       \
+  F(map_update_hold_grow_radius_m, g.fusion.hold.grow_radius_m)                               \
+  F(map_update_hold_max_attached_fraction, g.fusion.hold.max_attached_fraction)               \
+  F(map_update_hold_min_seen_points, g.fusion.hold.min_seen_points)
 
 ScanMatchingConfig ToScanMatchingConfig(const core::OdometryConfig& o) {
   ScanMatchingConfig out = ScanMatchingConfig::__getDefault__();

@@ -101,13 +101,14 @@ void PrintMergeReport(const core::MergeReport& report) {
   std::fprintf(stderr,
                "%s merged: %zu submaps voted to a candidate, %zu undefined; %zu inter-session "
                "loops + %zu by sequence (%zu of them judged again) + %zu proximity loops; %zu submaps added, %zu fused; %zu dynamic points "
-               "removed (%zu of them and of the new session's left out as copies), %zu mended, %zu fused points added; matching %.1f s, optimisation %.1f s, "
+               "removed (%zu of them and of the new session's left out as copies), %zu mended, %zu fused points added, %zu points of %zu new objects held back; matching %.1f s, optimisation %.1f s, "
                "dynamics %.2f s/pair median, update %.1f s (detection %.1f, fusion %.1f, "
                "database %.1f)\n",
                report.session.c_str(), matched, undefined, report.inter_loops,
                report.sequence_loops, report.rejudged_loops, report.proximity_loops, report.submaps_added, report.submaps_fused,
                report.points_removed, report.points_propagated, report.points_mended,
-               report.points_fused, report.matching_s, report.optimisation_s, pairs.median, report.update_s,
+               report.points_fused, report.points_held_back, report.objects_held_back,
+               report.matching_s, report.optimisation_s, pairs.median, report.update_s,
                report.update_dynamics_s, report.update_fusion_s, report.update_database_s);
 }
 

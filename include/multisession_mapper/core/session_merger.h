@@ -26,6 +26,7 @@
 #include "multisession_mapper/core/inter_session_matcher.h"
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/map_update.h"
+#include "multisession_mapper/core/new_object_hold.h"
 #include "multisession_mapper/core/place_recognizer.h"
 #include "multisession_mapper/core/pose_graph.h"
 #include "multisession_mapper/core/session_mapper.h"
@@ -72,6 +73,10 @@ struct MapFusionConfig {
   /// bounded size; every session keeps its change log (changes/<session>.yaml, with the
   /// counts), loops and trajectories (0: keep every record).
   int record_sessions = 3;
+  /// New objects of the new session (above-ground groups of movable shape, alone, where the
+  /// history saw the ground or removed an object) are not added to the history
+  /// (new_object_hold.h).
+  NewObjectHoldConfig hold;
 
   Status Validate() const;
 };
@@ -115,6 +120,9 @@ struct MergeReport {
   std::size_t points_propagated = 0;
   std::size_t points_mended = 0;
   std::size_t points_fused = 0;     ///< static points of fused submaps new to the history
+  /// Points of new objects not added to the history (MapFusionConfig::hold), and their groups.
+  std::size_t points_held_back = 0;
+  std::size_t objects_held_back = 0;
   std::vector<SubmapChange> changes;
   LoopRecords loops;                 ///< inter and proximity records (loops/<session>.csv)
   InterSessionMatchResult matching;  ///< votes and candidates

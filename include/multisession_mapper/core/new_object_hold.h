@@ -1,0 +1,74 @@
+// Holding back new objects at a merge. The map update adds to the history the points of the
+// new session that the history lacks (mending behind removed objects, fused submaps' new
+// structure). A car parked where the history saw the ground, or where it saw another car that
+// this merge removed, is such a point set too: present in the new session only, so by the
+// map's own definition not static (an object is static when every session that saw its place
+// saw it). The update therefore holds back each connected above-ground group of candidate
+// points that has the shape of a movable object, stands alone (few history points above the
+// ground next to it: not a new face of an object the history keeps) and lies where the
+// history measured something (its ground, or the object this merge removed). What the history
+// never saw is still added: the map stays complete where it could not know better.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "multisession_mapper/core/status.h"
+#include "multisession_mapper/core/types.h"
+
+namespace multisession_mapper {
+namespace core {
+
+struct NewObjectHoldConfig {
+  bool enabled = true;
+  /// Local ground: the lowest point of the history, the removed points and the candidates in
+  /// cells of this edge, the minimum over the 3 x 3 cells around [m]; a candidate more than
+  /// ground_tolerance_m above it is above the ground [m] (the detection's values).
+  double ground_cell_m = 0.5;
+  double ground_tolerance_m = 0.25;
+  /// Above-ground candidates closer than this are one group [m]. The candidates are sparse
+  /// (only where the history has no point within a 0.2 m voxel), so the radius is wider than
+  /// the detection's 0.45 m.
+  double grow_radius_m = 0.6;
+  int min_points = 5;
+  /// Movable shape (the detection's changed-object test without normals): horizontal extent
+  /// (bounding-box diagonal) [m], top and bottom above the local ground [m].
+  double max_extent_m = 9.0;
+  double max_top_m = 3.5;
+  double max_bottom_m = 0.8;
+  /// Alone: at most this fraction [0, 1] of the group's points has a history point above the
+  /// ground (after this merge's removals) within attach_radius_m [m].
+  double attach_radius_m = 0.5;
+  double max_attached_fraction = 0.2;
+  /// Seen: at least this many history points on the ground, or removed by this merge, lie
+  /// within the group's horizontal bounding box grown by seen_margin_m [m] (counted per ground
+  /// cell: cells that overlap the box count whole).
+  double seen_margin_m = 0.3;
+  int min_seen_points = 5;
+
+  Status Validate() const;
+};
+
+/// A point cloud and its pose in the map frame.
+struct PlacedPoints {
+  const PointVector* points = nullptr;
+  Pose3 T_map_points = Pose3::Identity();
+
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+struct NewObjectHoldResult {
+  std::vector<std::uint8_t> held;  ///< per candidate: 1 to hold back
+  std::size_t groups_held = 0;
+};
+
+/// Decides, per candidate point (map frame), whether the update holds it back. `history`: the
+/// history submaps after this merge's removals; `removed_m`: the points this merge removed
+/// (map frame). Disabled: nothing is held. An error only for non-finite points.
+StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& config,
+                                                 const PointVector& candidates_m,
+                                                 const std::vector<PlacedPoints>& history,
+                                                 const PointVector& removed_m);
+
+}  // namespace core
+}  // namespace multisession_mapper
