@@ -274,6 +274,7 @@ TEST_F(SessionMergerTest, ACarThatArrivedWithTheNewSessionIsNotAddedToTheMap) {
       merger.value().Merge(first.result, Record("s00"), *first.recognizer, SessionFiles(), &map)
           .ok());
   ASSERT_LT(PointsOnCar(map), 5u);
+  const MapContents map_before_second = map;
   MapContents map_without_hold = map;
   Mapped second = MapSession(1, scene_with_car_, "s01", DatabaseOf(map), 0.0, 86400.0);
   StatusOr<MergeReport> merged =
@@ -293,6 +294,25 @@ TEST_F(SessionMergerTest, ACarThatArrivedWithTheNewSessionIsNotAddedToTheMap) {
   EXPECT_GT(PointsOnCar(map_without_hold), 30u);
   EXPECT_EQ(added.value().points_held_back, 0u);
   EXPECT_GT(merged.value().points_held_back, 30u);
+
+  // No new submap fused (each is kept as a submap of its own): the hold takes the car out of
+  // the kept submaps as well.
+  config.fusion.min_overlap_ratio = 1.0;
+  for (bool hold : {true, false}) {
+    config.fusion.hold.enabled = hold;
+    StatusOr<SessionMerger> unfused = SessionMerger::Create(config);
+    ASSERT_TRUE(unfused.ok());
+    MapContents fresh = map_before_second;
+    StatusOr<MergeReport> kept = unfused.value().Merge(second.result, Record("s01"),
+                                                       *second.recognizer, SessionFiles(), &fresh);
+    ASSERT_TRUE(kept.ok()) << kept.status().message();
+    EXPECT_EQ(kept.value().submaps_fused, 0u);
+    if (hold) {
+      EXPECT_LT(PointsOnCar(fresh), 5u);
+    } else {
+      EXPECT_GT(PointsOnCar(fresh), 30u);
+    }
+  }
 }
 
 TEST_F(SessionMergerTest, ASessionElsewhereIsRefusedAndTheMapIsUnchanged) {

@@ -607,6 +607,9 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   std::vector<std::vector<std::size_t>> partners(session.submaps.size());  // its pairs' history
   for (const Pair& p : pairs) partners[p.current].push_back(p.history);
   std::vector<PointVector> fusion_candidates(session.submaps.size());
+  // Of a paired new submap that is kept as a submap: its static points with no history point
+  // near (indices), candidates for the new-object hold as well.
+  std::vector<std::vector<std::uint32_t>> unfused_new(session.submaps.size());
   ParallelFor(session.submaps.size(), config_.num_threads, [&](std::size_t c) {
     const Submap& cs = session.submaps[c];
     const Pose3 T_map_c = pose_of_current(c);
@@ -621,7 +624,16 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       overlapping += overlap_grid.Near(T_map_c * cs.points[k]);
     }
     const double ratio = considered ? static_cast<double>(overlapping) / considered : 0.0;
-    if (ratio < config_.fusion.min_overlap_ratio || partners[c].empty()) return;
+    if (partners[c].empty()) return;
+    if (ratio < config_.fusion.min_overlap_ratio) {
+      if (!config_.fusion.hold.enabled) return;
+      for (std::size_t k = 0; k < cs.points.size(); ++k) {
+        if (!is_dynamic(k) && !fusion_grid.Near(T_map_c * cs.points[k])) {
+          unfused_new[c].push_back(static_cast<std::uint32_t>(k));
+        }
+      }
+      return;
+    }
     fused[c] = 1;
     for (std::size_t k = 0; k < cs.points.size(); ++k) {
       if (is_dynamic(k)) continue;
@@ -638,6 +650,11 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     if (!fused[c]) continue;
     candidates.insert(candidates.end(), fusion_candidates[c].begin(),
                       fusion_candidates[c].end());
+  }
+  for (std::size_t c = 0; c < session.submaps.size(); ++c) {
+    for (std::uint32_t k : unfused_new[c]) {
+      candidates.push_back(pose_of_current(c) * session.submaps[c].points[k]);
+    }
   }
   std::vector<PlacedPoints> history_placed;
   for (std::size_t h = 0; h < map->submaps.size(); ++h) {
@@ -676,6 +693,14 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     fused_ids.push_back(session.submaps[c].id);
     for (const Eigen::Vector3d& p : fusion_candidates[c]) {
       if (not_held(p)) fusion_points += add_to_history(nearest_history(p, partners[c]), p);
+    }
+  }
+  // Held points of the new submaps kept as submaps leave them with their dynamic points.
+  for (std::size_t c = 0; c < session.submaps.size(); ++c) {
+    for (std::uint32_t k : unfused_new[c]) {
+      if (!not_held(pose_of_current(c) * session.submaps[c].points[k])) {
+        current_dynamic[c].insert(k);
+      }
     }
   }
   report.points_held_back = held_map.size();

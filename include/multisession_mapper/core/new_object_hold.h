@@ -1,13 +1,16 @@
 // Holding back new objects at a merge. The map update adds to the history the points of the
 // new session that the history lacks (mending behind removed objects, fused submaps' new
-// structure). A car parked where the history saw the ground, or where it saw another car that
-// this merge removed, is such a point set too: present in the new session only, so by the
-// map's own definition not static (an object is static when every session that saw its place
-// saw it). The update therefore holds back each connected above-ground group of candidate
-// points that has the shape of a movable object, stands alone (few history points above the
-// ground next to it: not a new face of an object the history keeps) and lies where the
-// history measured something (its ground, or the object this merge removed). What the history
-// never saw is still added: the map stays complete where it could not know better.
+// structure), and keeps the new submaps that overlap the history too little to be fused. A
+// car parked where the history saw the ground, or where it saw another car that this merge
+// removed, is such a point set too: present in the new session only, so by the map's own
+// definition not static (an object is static when every session that saw its place saw it).
+// The update therefore holds back each connected above-ground group of candidate points
+// (those with no history point near: the points to add, and those of the kept new submaps
+// that were paired with history submaps) that has the shape of a movable object, stands alone
+// (few history points above the ground next to it: not a new face of an object the history
+// keeps) and lies where the history measured something (its ground, or the object this merge
+// removed). What the history never saw is still added: the map stays complete where it could
+// not know better.
 #pragma once
 
 #include <cstdint>

@@ -74,8 +74,8 @@ struct MapFusionConfig {
   /// counts), loops and trajectories (0: keep every record).
   int record_sessions = 3;
   /// New objects of the new session (above-ground groups of movable shape, alone, where the
-  /// history saw the ground or removed an object) are not added to the history
-  /// (new_object_hold.h).
+  /// history saw the ground or removed an object) are not added to the history, and leave the
+  /// paired new submaps that are kept as submaps (new_object_hold.h).
   NewObjectHoldConfig hold;
 
   Status Validate() const;
