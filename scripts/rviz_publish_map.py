@@ -57,7 +57,7 @@ class Scene(object):
         self.map_points = np.zeros((0, 3))
         self.submaps = []    # (session, id, origin xyz, num_points)
         self.loops = []      # (LoopCandidate, current origin xyz, history origin xyz or None)
-        self.dynamics = []   # (session, removed (N,3), mended (M,3))
+        self.dynamics = []   # (session, removed (N,3), mended (M,3), held (K,3))
         self.summary = ''
         self.path = np.zeros((0, 3))  # positions of the last session's trajectory, map frame
 
@@ -96,13 +96,12 @@ def scene_from_map(map_dir, voxel_m):
             scene.loops.append((c, current, history))
             counts[row.status] += 1
         dyn = os.path.join(map_dir, 'dynamics')
-        removed = os.path.join(dyn, '%s_removed.pcd' % session)
-        mended = os.path.join(dyn, '%s_mended.pcd' % session)
-        if os.path.isfile(removed) or os.path.isfile(mended):
-            scene.dynamics.append((
-                session,
-                pcd.xyz(pcd.read_pcd(removed)) if os.path.isfile(removed) else np.zeros((0, 3)),
-                pcd.xyz(pcd.read_pcd(mended)) if os.path.isfile(mended) else np.zeros((0, 3))))
+        files = [os.path.join(dyn, '%s_%s.pcd' % (session, kind))
+                 for kind in ('removed', 'mended', 'held')]
+        if any(os.path.isfile(f) for f in files):
+            scene.dynamics.append((session,) + tuple(
+                pcd.xyz(pcd.read_pcd(f)) if os.path.isfile(f) else np.zeros((0, 3))
+                for f in files))
     trajectory = m.trajectory(m.session_names[-1]) if m.session_names else None
     if trajectory is not None:
         scene.path = trajectory.positions
@@ -122,7 +121,7 @@ def scene_from_map(map_dir, voxel_m):
 
 
 def synthetic_scene():
-    """A 60 m x 60 m ground grid, four loops (one per status) and one removed/mended block."""
+    """A 60 m x 60 m ground grid, four loops (one per status) and one removed/mended/held block."""
     scene = Scene()
     g = np.arange(-30.0, 30.0, 0.5)
     gx, gy = np.meshgrid(g, g)
@@ -142,7 +141,7 @@ def synthetic_scene():
     b = np.arange(-3.0, 3.0, 0.1)
     bx, by = np.meshgrid(b, b)
     block = np.stack([bx.ravel(), by.ravel(), np.full(bx.size, 1.0)], axis=1)
-    scene.dynamics.append(('s01', block, block + [8.0, 0.0, 0.0]))
+    scene.dynamics.append(('s01', block, block + [8.0, 0.0, 0.0], block + [-8.0, 0.0, 0.0]))
     scene.path = np.array([o + [8.0, 6.0, 0.0] for o in origins])
     scene.summary = 'synthetic scene: 2 sessions, 8 submaps, 4 loops, %d removed points' % len(block)
     return scene
@@ -191,10 +190,11 @@ def publish(scene, frame, subscriber_wait_s):
         submaps_pub.publish(info)
         rospy.sleep(0.002)
     wait_for_subscribers(dynamic_pub, subscriber_wait_s)
-    for session, removed, mended in scene.dynamics:
+    for session, removed, mended, held in scene.dynamics:
         dynamic_pub.publish(DynamicPoints(header=header, current_session=session,
                                           removed=cloud_msg(removed, header),
-                                          mended=cloud_msg(mended, header)))
+                                          mended=cloud_msg(mended, header),
+                                          held=cloud_msg(held, header)))
     rospy.loginfo('published %d map points, %d submaps, %d loops, %d dynamic point sets, '
                   '%d path poses', len(scene.map_points), len(scene.submaps), len(scene.loops),
                   len(scene.dynamics), len(scene.path))

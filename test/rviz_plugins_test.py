@@ -209,9 +209,12 @@ def test_rviz_loads_mapping_config_under_xvfb(ros_home):
         # Displays draw unlit flat colours; allow for blending at edges.
         return int(np.sum(np.all(np.abs(img - np.array(color)) <= 40, axis=2)))
 
-    # Removed points are red (255, 0, 0), accepted loops green (0, 210, 90) in mapping.rviz;
-    # neither colour is on screen before the scene is published.
+    # Removed points are red (255, 0, 0), held-back points violet (130, 60, 255), accepted loops
+    # green (0, 210, 90) in mapping.rviz; none of these colours is on screen before the scene is
+    # published.
     red_before, red_after = count(before, (255, 0, 0)), count(after, (255, 0, 0))
+    violet_before, violet_after = count(before, (130, 60, 255)), count(after, (130, 60, 255))
     green_before, green_after = count(before, (0, 210, 90)), count(after, (0, 210, 90))
     assert red_after > red_before + 200, (red_before, red_after)
+    assert violet_after > violet_before + 200, (violet_before, violet_after)
     assert green_after > green_before + 50, (green_before, green_after)

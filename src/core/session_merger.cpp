@@ -804,6 +804,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   }
   map->clouds["dynamics/" + record.name + "_removed.pcd"] = std::move(all_removed);
   map->clouds["dynamics/" + record.name + "_mended.pcd"] = std::move(all_mended);
+  report.held_m = held_map;
   map->clouds["dynamics/" + record.name + "_held.pcd"] = std::move(held_map);
   RetireSessionRecords(config_.fusion.record_sessions, map);
   report.update_s = SecondsSince(update_start);

@@ -251,6 +251,14 @@ class MapMergingNodelet : public nodelet::Nodelet {
       msg.mended = conversions::ToPointCloud2(change.mended_m, frames_.map, msg.header.stamp);
       dynamic_pub_.publish(msg);
     }
+    if (!r.held_m.empty()) {  // one message for the new objects held back by the merge
+      DynamicPoints msg;
+      msg.header.stamp = ros::Time::now();
+      msg.header.frame_id = frames_.map;
+      msg.current_session = r.session;
+      msg.held = conversions::ToPointCloud2(r.held_m, frames_.map, msg.header.stamp);
+      dynamic_pub_.publish(msg);
+    }
     PublishMapLocked();
     std_msgs::String text;
     text.data = summary.str();

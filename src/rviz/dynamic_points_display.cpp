@@ -64,6 +64,13 @@ DynamicPointsDisplay::DynamicPointsDisplay() {
   show_mended_property_ = new rviz::BoolProperty(
       "Show Mended", true, "Draw the mended points as well as the removed ones.", this,
       SLOT(updateStyle()));
+  held_color_property_ = new rviz::ColorProperty(
+      "Held Color", QColor(130, 60, 255),
+      "Colour of the new-session points of new objects that the merge did not add.", this,
+      SLOT(updateStyle()));
+  show_held_property_ = new rviz::BoolProperty(
+      "Show Held", true, "Draw the held-back points of new objects.", this,
+      SLOT(updateStyle()));
   point_size_property_ = new rviz::FloatProperty(
       "Point Size", 0.15f, "Side of the square drawn per point [m].", this, SLOT(updateStyle()));
   point_size_property_->setMin(0.001f);
@@ -90,6 +97,7 @@ void DynamicPointsDisplay::reset() {
 void DynamicPointsDisplay::destroyVisual(Visual& visual) {
   visual.removed_cloud.reset();  // MovableObjects detach themselves from the node
   visual.mended_cloud.reset();
+  visual.held_cloud.reset();
   if (visual.node != nullptr) scene_manager_->destroySceneNode(visual.node);
   visual.node = nullptr;
 }
@@ -99,6 +107,8 @@ void DynamicPointsDisplay::fillClouds(Visual& visual) const {
   Fill(*visual.removed_cloud, visual.removed, removed_color_property_->getOgreColor(), size);
   Fill(*visual.mended_cloud, visual.mended, mended_color_property_->getOgreColor(), size);
   visual.mended_cloud->setVisible(show_mended_property_->getBool());
+  Fill(*visual.held_cloud, visual.held, held_color_property_->getOgreColor(), size);
+  visual.held_cloud->setVisible(show_held_property_->getBool());
 }
 
 void DynamicPointsDisplay::processMessage(const DynamicPoints::ConstPtr& msg) {
@@ -116,6 +126,7 @@ void DynamicPointsDisplay::processMessage(const DynamicPoints::ConstPtr& msg) {
   try {
     visual.removed = FinitePoints(msg->removed);
     visual.mended = FinitePoints(msg->mended);
+    visual.held = FinitePoints(msg->held);
   } catch (const std::exception& e) {
     setStatus(rviz::StatusProperty::Error, "Message", QString("Unreadable cloud: ") + e.what());
     return;
@@ -123,18 +134,21 @@ void DynamicPointsDisplay::processMessage(const DynamicPoints::ConstPtr& msg) {
   visual.node = scene_node_->createChildSceneNode(position, orientation);
   visual.removed_cloud = std::make_unique<rviz::PointCloud>();
   visual.mended_cloud = std::make_unique<rviz::PointCloud>();
+  visual.held_cloud = std::make_unique<rviz::PointCloud>();
   // Ogre refuses two objects of the same name on one node: name them after the message.
   const std::string name = "msm_dynamic_points_" + std::to_string(num_visuals_created_++);
   visual.removed_cloud->setName(name + "_removed");
   visual.mended_cloud->setName(name + "_mended");
+  visual.held_cloud->setName(name + "_held");
   visual.node->attachObject(visual.removed_cloud.get());
   visual.node->attachObject(visual.mended_cloud.get());
+  visual.node->attachObject(visual.held_cloud.get());
   fillClouds(visual);
   setStatus(rviz::StatusProperty::Ok, "Message",
-            QString("%1:%2 by %3:%4: %5 removed, %6 mended")
+            QString("%1:%2 by %3:%4: %5 removed, %6 mended, %7 held back")
                 .arg(QString::fromStdString(msg->history_session)).arg(msg->history_submap)
                 .arg(QString::fromStdString(msg->current_session)).arg(msg->current_submap)
-                .arg(visual.removed.size()).arg(visual.mended.size()));
+                .arg(visual.removed.size()).arg(visual.mended.size()).arg(visual.held.size()));
   visuals_.push_back(std::move(visual));
   trimHistory();
   context_->queueRender();

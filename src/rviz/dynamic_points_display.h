@@ -1,6 +1,7 @@
 // RViz display of multisession_mapper/DynamicPoints: the points removed from a history submap
 // by low-dynamic detection (Ding et al., Sec. III-D) in red, and the current-session points
-// mended in behind them in another colour. The last `History Length` messages stay visible (one
+// mended in behind them in another colour, and the points of new objects that a merge held back
+// (not added) in a third. The last `History Length` messages stay visible (one
 // message per history/current submap pair), so a whole merge can be inspected at once.
 #pragma once
 
@@ -46,8 +47,8 @@ class DynamicPointsDisplay
   // One received message: its two clouds, positioned in the fixed frame by `node`.
   struct Visual {
     Ogre::SceneNode* node = nullptr;
-    std::vector<Ogre::Vector3> removed, mended;  // message frame [m], finite points only
-    std::unique_ptr<rviz::PointCloud> removed_cloud, mended_cloud;
+    std::vector<Ogre::Vector3> removed, mended, held;  // message frame [m], finite points only
+    std::unique_ptr<rviz::PointCloud> removed_cloud, mended_cloud, held_cloud;
   };
 
   void processMessage(const DynamicPoints::ConstPtr& msg) override;
@@ -58,6 +59,8 @@ class DynamicPointsDisplay
   rviz::ColorProperty* removed_color_property_ = nullptr;
   rviz::ColorProperty* mended_color_property_ = nullptr;
   rviz::BoolProperty* show_mended_property_ = nullptr;
+  rviz::ColorProperty* held_color_property_ = nullptr;
+  rviz::BoolProperty* show_held_property_ = nullptr;
   rviz::FloatProperty* point_size_property_ = nullptr;  // [m]
   rviz::IntProperty* history_length_property_ = nullptr;
 

@@ -123,6 +123,7 @@ struct MergeReport {
   /// Points of new objects not added to the history (MapFusionConfig::hold), and their groups.
   std::size_t points_held_back = 0;
   std::size_t objects_held_back = 0;
+  PointVector held_m;  ///< those points, map frame [m]
   std::vector<SubmapChange> changes;
   LoopRecords loops;                 ///< inter and proximity records (loops/<session>.csv)
   InterSessionMatchResult matching;  ///< votes and candidates
