@@ -158,6 +158,19 @@ TEST(NewObjectHoldTest, StructureOfOtherShapesIsAdded) {
   EXPECT_EQ(CountHeld(r.value(), 0, low_wall.size()), static_cast<int>(low_wall.size()));
 }
 
+TEST(NewObjectHoldTest, NonFinitePointsAreAnError) {
+  PointVector ground;
+  AddGround(-5.0, 5.0, -5.0, 5.0, &ground);
+  std::vector<PlacedPoints> history = {{&ground, Pose3::Identity()}};
+  PointVector candidates = Car(0.0, 0.0);
+  ASSERT_TRUE(HoldBackNewObjects(NewObjectHoldConfig(), candidates, history, PointVector()).ok());
+  candidates[3].x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(HoldBackNewObjects(NewObjectHoldConfig(), candidates, history, PointVector()).ok());
+  candidates[3].x() = 0.0;
+  ground[7].z() = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(HoldBackNewObjects(NewObjectHoldConfig(), candidates, history, PointVector()).ok());
+}
+
 TEST(NewObjectHoldTest, InvalidConfigsAreRejected) {
   EXPECT_TRUE(NewObjectHoldConfig().Validate().ok());
   NewObjectHoldConfig c;

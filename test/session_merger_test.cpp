@@ -281,7 +281,9 @@ TEST_F(SessionMergerTest, ACarThatArrivedWithTheNewSessionIsNotAddedToTheMap) {
       merger.value().Merge(second.result, Record("s01"), *second.recognizer, SessionFiles(), &map);
   ASSERT_TRUE(merged.ok()) << merged.status().message();
   EXPECT_LT(PointsOnCar(map), 5u);
-  EXPECT_TRUE(map.clouds.count("dynamics/s01_held.pcd"));
+  ASSERT_TRUE(map.clouds.count("dynamics/s01_held.pcd"));
+  EXPECT_EQ(map.clouds.at("dynamics/s01_held.pcd").size(), merged.value().points_held_back);
+  EXPECT_EQ(merged.value().held_m.size(), merged.value().points_held_back);
 
   // Without the hold the car enters the map: the test above is not passed by the detection.
   config.fusion.hold.enabled = false;

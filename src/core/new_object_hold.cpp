@@ -117,6 +117,11 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
   NewObjectHoldResult result;
   result.held.assign(candidates_m.size(), 0);
   if (!config.enabled || candidates_m.empty()) return result;
+  for (const PointVector* points : {&candidates_m, &removed_m}) {
+    for (const Eigen::Vector3d& p : *points) {
+      if (!p.allFinite()) return Status::Error("new-object hold: a non-finite point");
+    }
+  }
   // The region: the candidates' cells and those around them, wide enough for the ground's
   // 3 x 3 minimum at the attach radius.
   CellMap cells(config.ground_cell_m);
@@ -129,6 +134,7 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
     if (h.points == nullptr) continue;
     for (const Eigen::Vector3d& q : *h.points) {
       const Eigen::Vector3d p = h.T_map_points * q;
+      if (!p.allFinite()) return Status::Error("new-object hold: a non-finite history point");
       CellMap::Cell* cell = cells.Find(p);
       if (cell == nullptr) continue;
       cell->lowest = std::min(cell->lowest, static_cast<float>(p.z()));
