@@ -671,16 +671,18 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   if (!hold.ok()) return hold.status();
   const std::vector<std::uint8_t>& held = hold.value().held;
   report.objects_held_back = hold.value().groups_held;
+  // The points are visited below in the order in which they joined `candidates`.
   std::size_t next_candidate = 0;
-  auto not_held = [&](const Eigen::Vector3d& p) {
-    if (!held[next_candidate++]) return true;
-    held_map.push_back(p);
+  auto not_held = [&]() {
+    const std::size_t i = next_candidate++;
+    if (!held[i]) return true;
+    held_map.push_back(candidates[i]);
     return false;
   };
   std::map<std::size_t, PointVector> mended_added;  // history index -> mended points, map frame
   for (const auto& [h, points] : mended) {
     for (const Eigen::Vector3d& p : points) {
-      if (not_held(p) && add_to_history(h, p)) mended_added[h].push_back(p);
+      if (not_held() && add_to_history(h, p)) mended_added[h].push_back(p);
     }
   }
   std::vector<std::uint32_t> added_ids, fused_ids;
@@ -692,15 +694,13 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     }
     fused_ids.push_back(session.submaps[c].id);
     for (const Eigen::Vector3d& p : fusion_candidates[c]) {
-      if (not_held(p)) fusion_points += add_to_history(nearest_history(p, partners[c]), p);
+      if (not_held()) fusion_points += add_to_history(nearest_history(p, partners[c]), p);
     }
   }
   // Held points of the new submaps kept as submaps leave them with their dynamic points.
   for (std::size_t c = 0; c < session.submaps.size(); ++c) {
     for (std::uint32_t k : unfused_new[c]) {
-      if (!not_held(pose_of_current(c) * session.submaps[c].points[k])) {
-        current_dynamic[c].insert(k);
-      }
+      if (!not_held()) current_dynamic[c].insert(k);
     }
   }
   report.points_held_back = held_map.size();
