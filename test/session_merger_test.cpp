@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <memory>
 #include <sstream>
@@ -94,6 +95,16 @@ class SessionMergerTest : public ::testing::Test {
     out.result = std::move(result.value());
     out.recognizer = std::make_unique<PlaceRecognizer>(std::move(recognizer.value()));
     return out;
+  }
+
+  // The first session of the empty street, merged by `merger` into an empty map.
+  MapContents FirstSessionMap(SessionMerger* merger) {
+    Mapped first = MapSession(0, scene_, "s00", nullptr);
+    MapContents map;
+    const StatusOr<MergeReport> merged =
+        merger->Merge(first.result, Record("s00"), *first.recognizer, SessionFiles(), &map);
+    EXPECT_TRUE(merged.ok()) << merged.status().message();
+    return map;
   }
 
   static SessionRecord Record(const std::string& name) {
@@ -265,14 +276,11 @@ TEST_F(SessionMergerTest, MergesAReversedSessionRemovesTheCarAndDoesNotGrow) {
 // first one saw the street empty. It is present in one session only, so the merge must not
 // add it to the map, whether the detection finds it or the new-object hold keeps it out.
 TEST_F(SessionMergerTest, ACarThatArrivedWithTheNewSessionIsNotAddedToTheMap) {
-  Mapped first = MapSession(0, scene_, "s00", nullptr);
   SessionMergerConfig config;
   StatusOr<SessionMerger> merger = SessionMerger::Create(config);
   ASSERT_TRUE(merger.ok());
-  MapContents map;
-  ASSERT_TRUE(
-      merger.value().Merge(first.result, Record("s00"), *first.recognizer, SessionFiles(), &map)
-          .ok());
+  MapContents map = FirstSessionMap(&merger.value());
+  ASSERT_EQ(map.sessions.size(), 1u);
   ASSERT_LT(PointsOnCar(map), 5u);
   const MapContents map_before_second = map;
   MapContents map_without_hold = map;
@@ -315,6 +323,62 @@ TEST_F(SessionMergerTest, ACarThatArrivedWithTheNewSessionIsNotAddedToTheMap) {
       EXPECT_GT(PointsOnCar(fresh), 30u);
     }
   }
+}
+
+// The second session's samples of the ground fall between the first's: with the fine voxel
+// (MapFusionConfig::fine_voxel_m) the fused submaps fill those gaps, while what stands on the
+// ground (walls, poles: where a car could be) and the ground next to it are fused at the
+// coarse voxel as before.
+TEST_F(SessionMergerTest, FusedGroundFillsTheHistorysGapsAtTheFineVoxel) {
+  SessionMergerConfig config;
+  StatusOr<SessionMerger> merger = SessionMerger::Create(config);
+  ASSERT_TRUE(merger.ok());
+  MapContents map = FirstSessionMap(&merger.value());
+  ASSERT_EQ(map.sessions.size(), 1u);
+  const MapContents map_coarse_before = map;
+  Mapped second = MapSession(1, scene_, "s01", DatabaseOf(map), 0.0, 86400.0);
+  // Active map points by height above the scene's ground (z = 0 in the world).
+  const auto count = [&](const MapContents& m, double lo, double hi) {
+    const Pose3 T_world_map = Truth(0, 0.0);
+    std::size_t n = 0;
+    for (const Submap& s : m.submaps) {
+      if (s.state != SubmapState::kActive) continue;
+      for (const Eigen::Vector3d& p : s.points) {
+        const double z = (T_world_map * (s.T_map_submap * p)).z();
+        n += z >= lo && z < hi;
+      }
+    }
+    return n;
+  };
+  ASSERT_GT(config.fusion.fine_voxel_m, 0.0);
+  StatusOr<MergeReport> fine =
+      merger.value().Merge(second.result, Record("s01"), *second.recognizer, SessionFiles(), &map);
+  ASSERT_TRUE(fine.ok()) << fine.status().message();
+  config.fusion.fine_voxel_m = 0.0;  // the coarse voxel everywhere
+  StatusOr<SessionMerger> coarse_merger = SessionMerger::Create(config);
+  ASSERT_TRUE(coarse_merger.ok());
+  MapContents coarse_map = map_coarse_before;
+  StatusOr<MergeReport> coarse = coarse_merger.value().Merge(
+      second.result, Record("s01"), *second.recognizer, SessionFiles(), &coarse_map);
+  ASSERT_TRUE(coarse.ok()) << coarse.status().message();
+  ASSERT_GT(fine.value().submaps_fused, 0u);
+  const std::size_t ground_before = count(map_coarse_before, -1.0, 0.2);
+  const std::size_t ground_fine = count(map, -1.0, 0.2);
+  const std::size_t ground_coarse = count(coarse_map, -1.0, 0.2);
+  const std::size_t standing_fine = count(map, 0.5, 3.0);
+  const std::size_t standing_coarse = count(coarse_map, 0.5, 3.0);
+  std::printf("ground points %zu before, %zu after the coarse fusion, %zu after the fine; "
+              "0.5-3 m: %zu coarse, %zu fine; fused %zu / %zu\n",
+              ground_before, ground_coarse, ground_fine, standing_coarse, standing_fine,
+              coarse.value().points_fused, fine.value().points_fused);
+  // At least twice the ground points the coarse fusion adds.
+  ASSERT_GT(ground_coarse, ground_before);
+  EXPECT_GT(ground_fine - ground_before, 2 * (ground_coarse - ground_before));
+  EXPECT_GT(fine.value().points_fused, coarse.value().points_fused);
+  // Standing structure: the same fusion (a few points differ: the hold's ground estimate
+  // and the one-point-per-voxel record see the added ground points).
+  EXPECT_NEAR(static_cast<double>(standing_fine), static_cast<double>(standing_coarse),
+              0.02 * standing_coarse + 5.0);
 }
 
 TEST_F(SessionMergerTest, ASessionElsewhereIsRefusedAndTheMapIsUnchanged) {
@@ -369,6 +433,14 @@ TEST(SessionMergerConfig, InvalidValuesAreRefused) {
   config = SessionMergerConfig();
   config.fusion.record_sessions = -1;
   EXPECT_FALSE(config.Validate().ok());
+  config = SessionMergerConfig();
+  config.fusion.fine_voxel_m = -0.1;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SessionMergerConfig();
+  config.fusion.fine_above_m = config.fusion.fine_below_m - 0.1;
+  EXPECT_FALSE(config.Validate().ok());
+  config.fusion.fine_above_m = config.fusion.fine_below_m;
+  EXPECT_TRUE(config.Validate().ok());
 }
 
 }  // namespace

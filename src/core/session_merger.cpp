@@ -13,6 +13,7 @@
 
 #include "multisession_mapper/core/dependent_loops.h"
 #include "multisession_mapper/core/dynamic_propagation.h"
+#include "multisession_mapper/core/local_ground.h"
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/point_index_pool.h"
@@ -110,6 +111,11 @@ Status MapFusionConfig::Validate() const {
     return Status::Error("fusion.overlap_distance_m must be > 0");
   }
   if (!Finite(voxel_m) || voxel_m <= 0.0) return Status::Error("fusion.voxel_m must be > 0");
+  if (!Finite(fine_voxel_m) || fine_voxel_m < 0.0 || !Finite(fine_below_m) ||
+      !Finite(fine_above_m) || fine_below_m < 0.0 || fine_above_m < fine_below_m) {
+    return Status::Error(
+        "fusion.fine_voxel_m must be >= 0 (0: off) and 0 <= fine_below_m <= fine_above_m");
+  }
   if (!Finite(max_dynamic_fraction) || max_dynamic_fraction <= 0.0 ||
       max_dynamic_fraction > 1.0) {
     return Status::Error("fusion.max_dynamic_fraction must be in (0, 1]");
@@ -567,11 +573,14 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       history_points[h].push_back(hs.points[k]);
     }
   }
-  VoxelOccupancy overlap_grid(config_.fusion.overlap_distance_m);
-  VoxelOccupancy fusion_grid(config_.fusion.voxel_m);
-  // Every point of the map goes into both: one grid per thread.
-  ParallelFor(2, config_.num_threads, [&](std::size_t g) {
-    VoxelOccupancy& grid = g == 0 ? overlap_grid : fusion_grid;
+  const MapFusionConfig& fc = config_.fusion;
+  const bool use_fine = fc.fine_voxel_m > 0.0 && fc.fine_voxel_m < fc.voxel_m;
+  VoxelOccupancy overlap_grid(fc.overlap_distance_m);
+  VoxelOccupancy fusion_grid(fc.voxel_m);
+  VoxelOccupancy fine_grid(use_fine ? fc.fine_voxel_m : fc.voxel_m);
+  // Every point of the map goes into each: one grid per thread.
+  ParallelFor(use_fine ? 3 : 2, config_.num_threads, [&](std::size_t g) {
+    VoxelOccupancy& grid = g == 0 ? overlap_grid : (g == 1 ? fusion_grid : fine_grid);
     for (std::size_t h = 0; h < map->submaps.size(); ++h) {
       const Pose3 T = pose_of_history(h);
       for (const Eigen::Vector3d& p : history_points[h]) grid.Add(T * p);
@@ -594,9 +603,16 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   // Points join a history submap once per fusion voxel; fused (not mended) points only where
   // the history has nothing within about a voxel, so that re-observing the same surfaces with a
   // different scan pattern does not thicken the map session after session.
-  VoxelOccupancy added_grid(config_.fusion.voxel_m);
-  auto add_to_history = [&](std::size_t h, const Eigen::Vector3d& p_map) {
-    if (fusion_grid.Occupied(p_map) || added_grid.Occupied(p_map)) return false;
+  // Fine points (MapFusionConfig::fine_voxel_m) once per fine voxel.
+  VoxelOccupancy added_grid(fc.voxel_m);
+  VoxelOccupancy added_fine_grid(use_fine ? fc.fine_voxel_m : fc.voxel_m);
+  auto add_to_history = [&](std::size_t h, const Eigen::Vector3d& p_map, bool fine) {
+    if (fine) {
+      if (fine_grid.Occupied(p_map) || added_fine_grid.Occupied(p_map)) return false;
+      added_fine_grid.Add(p_map);
+    } else {
+      if (fusion_grid.Occupied(p_map) || added_grid.Occupied(p_map)) return false;
+    }
     added_grid.Add(p_map);
     added_to_history[h].push_back(pose_of_history(h).inverse() * p_map);
     return true;
@@ -607,6 +623,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   std::vector<std::vector<std::size_t>> partners(session.submaps.size());  // its pairs' history
   for (const Pair& p : pairs) partners[p.current].push_back(p.history);
   std::vector<PointVector> fusion_candidates(session.submaps.size());
+  std::vector<std::vector<std::uint8_t>> fusion_fine(session.submaps.size());  // per candidate
   // Of a paired new submap that is kept as a submap: its static points with no history point
   // near (indices), candidates for the new-object hold as well.
   std::vector<std::vector<std::uint32_t>> unfused_new(session.submaps.size());
@@ -635,10 +652,25 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       return;
     }
     fused[c] = 1;
+    PointVector in_map;
+    in_map.reserve(cs.points.size());
+    for (const Eigen::Vector3d& q : cs.points) in_map.push_back(T_map_c * q);
+    std::vector<float> height;
+    std::vector<std::uint8_t> near_standing;
+    if (use_fine) {
+      height = HeightsAboveLocalGround(in_map, fc.hold.ground_cell_m);
+      near_standing = NearStandingPoints(in_map, height, fc.hold.ground_cell_m,
+                                         fc.fine_below_m, fc.fine_above_m);
+    }
     for (std::size_t k = 0; k < cs.points.size(); ++k) {
       if (is_dynamic(k)) continue;
-      const Eigen::Vector3d p = T_map_c * cs.points[k];
-      if (!fusion_grid.Near(p)) fusion_candidates[c].push_back(p);
+      const Eigen::Vector3d& p = in_map[k];
+      const bool fine = use_fine && (height[k] >= fc.fine_above_m ||
+                                     (height[k] <= fc.fine_below_m && !near_standing[k]));
+      if (fine ? !fine_grid.Near(p) : !fusion_grid.Near(p)) {
+        fusion_candidates[c].push_back(p);
+        fusion_fine[c].push_back(fine);
+      }
     }
   });
   // New objects among the points to add (mended, then fused) are held back.
@@ -682,7 +714,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   std::map<std::size_t, PointVector> mended_added;  // history index -> mended points, map frame
   for (const auto& [h, points] : mended) {
     for (const Eigen::Vector3d& p : points) {
-      if (not_held() && add_to_history(h, p)) mended_added[h].push_back(p);
+      if (not_held() && add_to_history(h, p, false)) mended_added[h].push_back(p);
     }
   }
   std::vector<std::uint32_t> added_ids, fused_ids;
@@ -693,8 +725,11 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
       continue;
     }
     fused_ids.push_back(session.submaps[c].id);
-    for (const Eigen::Vector3d& p : fusion_candidates[c]) {
-      if (not_held()) fusion_points += add_to_history(nearest_history(p, partners[c]), p);
+    for (std::size_t k = 0; k < fusion_candidates[c].size(); ++k) {
+      const Eigen::Vector3d& p = fusion_candidates[c][k];
+      if (not_held()) {
+        fusion_points += add_to_history(nearest_history(p, partners[c]), p, fusion_fine[c][k]);
+      }
     }
   }
   // Held points of the new submaps kept as submaps leave them with their dynamic points.

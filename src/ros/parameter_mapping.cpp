@@ -141,6 +141,9 @@ namespace ros_params {
   F(map_update_fuse_min_overlap_ratio, g.fusion.min_overlap_ratio)                            \
   F(map_update_fuse_overlap_distance_m, g.fusion.overlap_distance_m)                          \
   F(map_update_fuse_voxel_m, g.fusion.voxel_m)                                                \
+  F(map_update_fuse_fine_voxel_m, g.fusion.fine_voxel_m)                                      \
+  F(map_update_fuse_fine_below_m, g.fusion.fine_below_m)                                      \
+  F(map_update_fuse_fine_above_m, g.fusion.fine_above_m)                                      \
   F(map_update_max_dynamic_fraction, g.fusion.max_dynamic_fraction)                          \
   F(map_update_propagate_radius_m, g.fusion.propagate_radius_m)                              \
   F(map_update_hold_new_objects, g.fusion.hold.enabled)                                       \
