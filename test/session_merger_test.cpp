@@ -337,15 +337,24 @@ TEST_F(SessionMergerTest, FusedGroundFillsTheHistorysGapsAtTheFineVoxel) {
   ASSERT_EQ(map.sessions.size(), 1u);
   const MapContents map_coarse_before = map;
   Mapped second = MapSession(1, scene_, "s01", DatabaseOf(map), 0.0, 86400.0);
-  // Active map points by height above the scene's ground (z = 0 in the world).
-  const auto count = [&](const MapContents& m, double lo, double hi) {
+  // Active map points by height above the scene's ground (z = 0 in the world); with
+  // near_boxes, only those within 0.4 m (horizontally) of a box's footprint.
+  const auto count = [&](const MapContents& m, double lo, double hi, bool near_boxes = false) {
     const Pose3 T_world_map = Truth(0, 0.0);
     std::size_t n = 0;
     for (const Submap& s : m.submaps) {
       if (s.state != SubmapState::kActive) continue;
       for (const Eigen::Vector3d& p : s.points) {
-        const double z = (T_world_map * (s.T_map_submap * p)).z();
-        n += z >= lo && z < hi;
+        const Eigen::Vector3d w = T_world_map * (s.T_map_submap * p);
+        if (w.z() < lo || w.z() >= hi) continue;
+        n += !near_boxes ||
+             std::any_of(scene_.boxes().begin(), scene_.boxes().end(),
+                         [&](const test::SceneBox& b) {
+                           const Eigen::Vector2d d = w.head<2>() - b.center.head<2>();
+                           const double u = std::abs(b.cos_yaw * d.x() + b.sin_yaw * d.y());
+                           const double v = std::abs(-b.sin_yaw * d.x() + b.cos_yaw * d.y());
+                           return u < b.half_size.x() + 0.4 && v < b.half_size.y() + 0.4;
+                         });
       }
     }
     return n;
@@ -367,18 +376,46 @@ TEST_F(SessionMergerTest, FusedGroundFillsTheHistorysGapsAtTheFineVoxel) {
   const std::size_t ground_coarse = count(coarse_map, -1.0, 0.2);
   const std::size_t standing_fine = count(map, 0.5, 3.0);
   const std::size_t standing_coarse = count(coarse_map, 0.5, 3.0);
-  std::printf("ground points %zu before, %zu after the coarse fusion, %zu after the fine; "
-              "0.5-3 m: %zu coarse, %zu fine; fused %zu / %zu\n",
-              ground_before, ground_coarse, ground_fine, standing_coarse, standing_fine,
+  const std::size_t high_fine = count(map, 3.6, 100.0);
+  const std::size_t high_coarse = count(coarse_map, 3.6, 100.0);
+  const std::size_t by_walls_fine = count(map, -1.0, 0.2, true);
+  const std::size_t by_walls_coarse = count(coarse_map, -1.0, 0.2, true);
+  const std::size_t by_walls_before = count(map_coarse_before, -1.0, 0.2, true);
+  std::printf("ground points %zu before, %zu after the coarse fusion, %zu after the fine "
+              "(within 0.4 m of a wall: %zu, %zu, %zu); 0.5-3 m: %zu coarse, %zu fine; above "
+              "3.6 m: %zu coarse, %zu fine; fused %zu / %zu\n",
+              ground_before, ground_coarse, ground_fine, by_walls_before, by_walls_coarse,
+              by_walls_fine, standing_coarse, standing_fine, high_coarse, high_fine,
               coarse.value().points_fused, fine.value().points_fused);
   // At least twice the ground points the coarse fusion adds.
   ASSERT_GT(ground_coarse, ground_before);
+  ASSERT_GT(ground_fine, ground_before);
   EXPECT_GT(ground_fine - ground_before, 2 * (ground_coarse - ground_before));
+  // Next to a wall (something standing within a ground cell) the ground stays coarse.
+  ASSERT_GT(by_walls_before, 500u);
+  EXPECT_NEAR(static_cast<double>(by_walls_fine), static_cast<double>(by_walls_coarse),
+              0.02 * by_walls_coarse + 5.0);
+  // High surfaces (walls above fine_above_m) are fine as well.
+  EXPECT_GT(high_fine, high_coarse);
   EXPECT_GT(fine.value().points_fused, coarse.value().points_fused);
   // Standing structure: the same fusion (a few points differ: the hold's ground estimate
   // and the one-point-per-voxel record see the added ground points).
   EXPECT_NEAR(static_cast<double>(standing_fine), static_cast<double>(standing_coarse),
               0.02 * standing_coarse + 5.0);
+
+  // A fine voxel as large as the coarse one is off: the same map as fine_voxel_m = 0.
+  config.fusion.fine_voxel_m = config.fusion.voxel_m;
+  StatusOr<SessionMerger> same_merger = SessionMerger::Create(config);
+  ASSERT_TRUE(same_merger.ok());
+  MapContents same_map = map_coarse_before;
+  ASSERT_TRUE(same_merger.value()
+                  .Merge(second.result, Record("s01"), *second.recognizer, SessionFiles(),
+                         &same_map)
+                  .ok());
+  ASSERT_EQ(same_map.submaps.size(), coarse_map.submaps.size());
+  for (std::size_t i = 0; i < same_map.submaps.size(); ++i) {
+    EXPECT_EQ(same_map.submaps[i].points, coarse_map.submaps[i].points) << "submap " << i;
+  }
 }
 
 TEST_F(SessionMergerTest, ASessionElsewhereIsRefusedAndTheMapIsUnchanged) {
@@ -440,6 +477,19 @@ TEST(SessionMergerConfig, InvalidValuesAreRefused) {
   config.fusion.fine_above_m = config.fusion.fine_below_m - 0.1;
   EXPECT_FALSE(config.Validate().ok());
   config.fusion.fine_above_m = config.fusion.fine_below_m;
+  EXPECT_TRUE(config.Validate().ok());
+  for (double bad : {0.01, std::nan("")}) {
+    config = SessionMergerConfig();
+    config.fusion.fine_voxel_m = bad;  // a tiny voxel would add nearly every point
+    EXPECT_FALSE(config.Validate().ok()) << bad;
+  }
+  config = SessionMergerConfig();
+  config.fusion.fine_below_m = -0.1;
+  EXPECT_FALSE(config.Validate().ok());
+  config.fusion.fine_below_m = std::nan("");
+  EXPECT_FALSE(config.Validate().ok());
+  config = SessionMergerConfig();
+  config.fusion.fine_voxel_m = 0.0;  // off
   EXPECT_TRUE(config.Validate().ok());
 }
 

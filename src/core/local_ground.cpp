@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/local_ground.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -57,6 +58,7 @@ std::vector<std::uint8_t> NearStandingPoints(const PointVector& points,
     return std::make_pair(static_cast<std::int64_t>(std::floor(p.x() * inv)),
                           static_cast<std::int64_t>(std::floor(p.y() * inv)));
   };
+  assert(heights.size() == points.size());
   std::unordered_set<std::uint64_t> standing;
   for (std::size_t i = 0; i < points.size() && i < heights.size(); ++i) {
     if (heights[i] > low_m && heights[i] < high_m) {

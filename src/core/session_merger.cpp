@@ -111,10 +111,12 @@ Status MapFusionConfig::Validate() const {
     return Status::Error("fusion.overlap_distance_m must be > 0");
   }
   if (!Finite(voxel_m) || voxel_m <= 0.0) return Status::Error("fusion.voxel_m must be > 0");
-  if (!Finite(fine_voxel_m) || fine_voxel_m < 0.0 || !Finite(fine_below_m) ||
-      !Finite(fine_above_m) || fine_below_m < 0.0 || fine_above_m < fine_below_m) {
+  if (!Finite(fine_voxel_m) || (fine_voxel_m != 0.0 && fine_voxel_m < 0.02) ||
+      !Finite(fine_below_m) || !Finite(fine_above_m) || fine_below_m < 0.0 ||
+      fine_above_m < fine_below_m) {
     return Status::Error(
-        "fusion.fine_voxel_m must be >= 0 (0: off) and 0 <= fine_below_m <= fine_above_m");
+        "fusion.fine_voxel_m must be 0 (off) or >= 0.02 m, and 0 <= fine_below_m <= "
+        "fine_above_m");
   }
   if (!Finite(max_dynamic_fraction) || max_dynamic_fraction <= 0.0 ||
       max_dynamic_fraction > 1.0) {
@@ -603,17 +605,18 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   // Points join a history submap once per fusion voxel; fused (not mended) points only where
   // the history has nothing within about a voxel, so that re-observing the same surfaces with a
   // different scan pattern does not thicken the map session after session.
-  // Fine points (MapFusionConfig::fine_voxel_m) once per fine voxel.
+  // Fine points (MapFusionConfig::fine_voxel_m) once per fine voxel: every added point, fine
+  // or not, occupies both records.
   VoxelOccupancy added_grid(fc.voxel_m);
   VoxelOccupancy added_fine_grid(use_fine ? fc.fine_voxel_m : fc.voxel_m);
   auto add_to_history = [&](std::size_t h, const Eigen::Vector3d& p_map, bool fine) {
     if (fine) {
       if (fine_grid.Occupied(p_map) || added_fine_grid.Occupied(p_map)) return false;
-      added_fine_grid.Add(p_map);
     } else {
       if (fusion_grid.Occupied(p_map) || added_grid.Occupied(p_map)) return false;
     }
     added_grid.Add(p_map);
+    if (use_fine) added_fine_grid.Add(p_map);
     added_to_history[h].push_back(pose_of_history(h).inverse() * p_map);
     return true;
   };

@@ -68,10 +68,10 @@ struct MapFusionConfig {
   /// also densify the cars the map still keeps. Session 48, 3-session seeds 1 / 3: static SA
   /// 98.43 -> 98.77 / 98.91 -> 99.24 %, low-dynamic DA 52.83 -> 51.07 / 50.16 -> 49.09 %
   /// (without the standing test: 98.82 / 99.31 % and 50.07 / 47.97 %).
-  /// 0 (or >= voxel_m): voxel_m everywhere.
+  /// 0 (or >= voxel_m): voxel_m everywhere; else at least 0.02 m.
   double fine_voxel_m = 0.1;
-  double fine_below_m = 0.25;
-  double fine_above_m = 3.5;
+  double fine_below_m = 0.25;  ///< [m] above the local ground
+  double fine_above_m = 3.5;   ///< [m] above the local ground, >= fine_below_m
   /// A pair whose detection marks more than this fraction of either submap as dynamic is
   /// treated as misaligned and left unchanged (removing that much would damage the map).
   double max_dynamic_fraction = 0.25;
