@@ -75,7 +75,7 @@ class MapMergingNodelet : public nodelet::Nodelet {
     pnh.param("idle_finish_s", initial.idle_finish_s, initial.idle_finish_s);
     pnh.param("merged_map_voxel_m", initial.merged_map_voxel_m, initial.merged_map_voxel_m);
     server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](MapMergingConfig& c, uint32_t) { Reconfigure(c); });
+    server_->setCallback([this](MapMergingConfig& c, uint32_t) { Reconfigure(&c); });
 
     odom_sub_ = nh.subscribe("odom", 100, &MapMergingNodelet::OnOdom, this);
     session_sub_ = nh.subscribe("finished_session", 2, &MapMergingNodelet::OnSession, this);
@@ -88,18 +88,23 @@ class MapMergingNodelet : public nodelet::Nodelet {
     NODELET_INFO_STREAM("MapMerging: map directory '" << map_dir_ << "'");
   }
 
-  void Reconfigure(const MapMergingConfig& c) {
+  // A refused change leaves the configuration as it was, and `*c` shows it (the server sends
+  // `*c` back to the client and keeps it as its current configuration).
+  void Reconfigure(MapMergingConfig* c) {
     std::lock_guard<std::mutex> lock(mutex_);
     core::SessionMergerConfig changed = merge_;
-    ros_params::ApplyMapMergingConfig(c, &changed);
+    ros_params::ApplyMapMergingConfig(*c, &changed);
     const core::Status s = changed.Validate();
     if (!s.ok()) {
       NODELET_WARN_STREAM("MapMerging: reconfigure refused: " << s.message());
+      *c = ros_params::ToMapMergingConfig(merge_);
+      c->idle_finish_s = idle_finish_s_;
+      c->merged_map_voxel_m = merged_map_voxel_m_;
       return;
     }
     merge_ = changed;
-    idle_finish_s_ = c.idle_finish_s;
-    merged_map_voxel_m_ = c.merged_map_voxel_m;
+    idle_finish_s_ = c->idle_finish_s;
+    merged_map_voxel_m_ = c->merged_map_voxel_m;
     NODELET_INFO("MapMerging: reconfigured for the next merge: d_beta %.2f m, grow %.2f m / %.2f rad, "
                  "height guard %s %.1f m, fusion overlap >= %.2f; idle finish %.1f s",
                  merge_.dynamics.seed_distance_m, merge_.dynamics.grow_radius_m,

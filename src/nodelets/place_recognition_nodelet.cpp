@@ -61,7 +61,7 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
     }
     PlaceRecognitionConfig initial = ros_params::ToPlaceRecognitionConfig(config_, matching_);
     server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](PlaceRecognitionConfig& c, uint32_t) { Reconfigure(c); });
+    server_->setCallback([this](PlaceRecognitionConfig& c, uint32_t) { Reconfigure(&c); });
 
     match_pub_ = nh.advertise<PlaceMatch>("place_matches", 100);
     candidates_pub_ = nh.advertise<LoopCandidateArray>("loop_candidates", 1, true);
@@ -119,15 +119,18 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  void Reconfigure(const PlaceRecognitionConfig& c) {
+  // A refused change leaves the configuration as it was, and `*c` shows it (the server sends
+  // `*c` back to the client and keeps it as its current configuration).
+  void Reconfigure(PlaceRecognitionConfig* c) {
     std::lock_guard<std::mutex> lock(mutex_);
     core::PlaceRecognizerConfig recognizer = config_;
     core::InterSessionMatcherConfig matching = matching_;
-    ros_params::ApplyPlaceRecognitionConfig(c, &recognizer, &matching);
+    ros_params::ApplyPlaceRecognitionConfig(*c, &recognizer, &matching);
     core::Status s = recognizer.Validate();
     if (s.ok()) s = matching.voting.Validate();
     if (!s.ok()) {
       NODELET_WARN_STREAM("PlaceRecognition: reconfigure refused: " << s.message());
+      *c = ros_params::ToPlaceRecognitionConfig(config_, matching_);
       return;
     }
     config_ = recognizer;

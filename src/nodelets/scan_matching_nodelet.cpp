@@ -59,7 +59,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     }
     ScanMatchingConfig initial = ros_params::ToScanMatchingConfig(config_);
     server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](ScanMatchingConfig& c, uint32_t) { Reconfigure(c); });
+    server_->setCallback([this](ScanMatchingConfig& c, uint32_t) { Reconfigure(&c); });
 
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 100);
@@ -81,13 +81,16 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  void Reconfigure(const ScanMatchingConfig& c) {
+  // A refused change leaves the configuration as it was, and `*c` shows it (the server sends
+  // `*c` back to the client and keeps it as its current configuration).
+  void Reconfigure(ScanMatchingConfig* c) {
     std::lock_guard<std::mutex> lock(mutex_);
     core::OdometryConfig changed = config_;
-    ros_params::ApplyScanMatchingConfig(c, &changed);
+    ros_params::ApplyScanMatchingConfig(*c, &changed);
     const core::Status valid = changed.Validate();
     if (!valid.ok()) {
       NODELET_WARN_STREAM("ScanMatching: reconfigure refused: " << valid.message());
+      *c = ros_params::ToScanMatchingConfig(config_);
       return;
     }
     if (!odometry_ || session_scans_ == 0) {
@@ -107,6 +110,7 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
                    config_.max_scan_gap_s);
     } else {
       config_ = old;
+      *c = ros_params::ToScanMatchingConfig(config_);
     }
   }
 

@@ -59,7 +59,7 @@ class SubmapManagerNodelet : public nodelet::Nodelet {
     }
     SubmapManagerConfig initial = ros_params::ToSubmapManagerConfig(config_);
     server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](SubmapManagerConfig& c, uint32_t) { Reconfigure(c); });
+    server_->setCallback([this](SubmapManagerConfig& c, uint32_t) { Reconfigure(&c); });
 
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     info_pub_ = nh.advertise<SubmapInfo>("submaps", 100);
@@ -87,13 +87,16 @@ class SubmapManagerNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  void Reconfigure(const SubmapManagerConfig& c) {
+  // A refused change leaves the configuration as it was, and `*c` shows it (the server sends
+  // `*c` back to the client and keeps it as its current configuration).
+  void Reconfigure(SubmapManagerConfig* c) {
     std::lock_guard<std::mutex> lock(mutex_);
     core::SessionMapperConfig changed = config_;
-    ros_params::ApplySubmapManagerConfig(c, &changed);
+    ros_params::ApplySubmapManagerConfig(*c, &changed);
     const core::Status s = mapper_ ? mapper_->UpdateConfig(changed) : changed.Validate();
     if (!s.ok()) {
       NODELET_WARN_STREAM("SubmapManager: reconfigure refused: " << s.message());
+      *c = ros_params::ToSubmapManagerConfig(config_);
       return;
     }
     config_ = changed;

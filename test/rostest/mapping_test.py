@@ -123,6 +123,15 @@ class MappingLaunchTest(unittest.TestCase):
                                                msg="%s: %s" % (node, name))
                         compared += 1
             self.assertGreaterEqual(compared, minimum, "%s: parameters compared" % node)
+        # A change the core refuses (fuse_fine_above_m below fuse_fine_below_m) is not applied,
+        # and the server answers and keeps the configuration in effect, not the refused one.
+        client = ReconfigureClient("/map_merging", timeout=10)
+        key = "map_update_fuse_fine_above_m"
+        before = client.get_configuration(timeout=10)
+        self.assertGreater(before["map_update_fuse_fine_below_m"], 0.1)
+        answer = client.update_configuration({key: 0.1})
+        self.assertAlmostEqual(answer[key], before[key], places=9)
+        self.assertAlmostEqual(client.get_configuration(timeout=10)[key], before[key], places=9)
         self.assertEqual(ReconfigureClient("/submap_manager", timeout=10).get_configuration(
             timeout=10)["submap_max_translation_m"], 5.0)
         self.assertEqual(ReconfigureClient("/place_recognition", timeout=10).get_configuration(
