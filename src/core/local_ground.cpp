@@ -16,16 +16,25 @@ std::uint64_t CellKey(std::int64_t x, std::int64_t y) {
   return (static_cast<std::uint64_t>(x) << 32) ^ (static_cast<std::uint64_t>(y) & 0xffffffffu);
 }
 
+// The horizontal cell of every point (cells of edge 1 / inv).
+void CellsOf(const PointVector& points, double inv, std::vector<std::int64_t>* cx,
+             std::vector<std::int64_t>* cy) {
+  cx->resize(points.size());
+  cy->resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    (*cx)[i] = static_cast<std::int64_t>(std::floor(points[i].x() * inv));
+    (*cy)[i] = static_cast<std::int64_t>(std::floor(points[i].y() * inv));
+  }
+}
+
 }  // namespace
 
 std::vector<float> HeightsAboveLocalGround(const PointVector& points, double cell_m) {
-  const double inv = 1.0 / cell_m;
-  std::vector<std::int64_t> cx(points.size()), cy(points.size());
+  std::vector<std::int64_t> cx, cy;
+  CellsOf(points, 1.0 / cell_m, &cx, &cy);
   std::unordered_map<std::uint64_t, float> lowest;
   lowest.reserve(points.size() / 8 + 1);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    cx[i] = static_cast<std::int64_t>(std::floor(points[i].x() * inv));
-    cy[i] = static_cast<std::int64_t>(std::floor(points[i].y() * inv));
     const float z = static_cast<float>(points[i].z());
     auto [it, inserted] = lowest.emplace(CellKey(cx[i], cy[i]), z);
     if (!inserted) it->second = std::min(it->second, z);
@@ -53,26 +62,19 @@ std::vector<float> HeightsAboveLocalGround(const PointVector& points, double cel
 std::vector<std::uint8_t> NearStandingPoints(const PointVector& points,
                                              const std::vector<float>& heights, double cell_m,
                                              double low_m, double high_m) {
-  const double inv = 1.0 / cell_m;
-  const auto cell_of = [inv](const Eigen::Vector3d& p) {
-    return std::make_pair(static_cast<std::int64_t>(std::floor(p.x() * inv)),
-                          static_cast<std::int64_t>(std::floor(p.y() * inv)));
-  };
   assert(heights.size() == points.size());
+  std::vector<std::int64_t> cx, cy;
+  CellsOf(points, 1.0 / cell_m, &cx, &cy);
   std::unordered_set<std::uint64_t> standing;
   for (std::size_t i = 0; i < points.size() && i < heights.size(); ++i) {
-    if (heights[i] > low_m && heights[i] < high_m) {
-      const auto [x, y] = cell_of(points[i]);
-      standing.insert(CellKey(x, y));
-    }
+    if (heights[i] > low_m && heights[i] < high_m) standing.insert(CellKey(cx[i], cy[i]));
   }
   std::vector<std::uint8_t> near(points.size(), 0);
   if (standing.empty()) return near;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const auto [x, y] = cell_of(points[i]);
     for (int dx = -1; dx <= 1 && !near[i]; ++dx) {
       for (int dy = -1; dy <= 1 && !near[i]; ++dy) {
-        near[i] = standing.count(CellKey(x + dx, y + dy)) > 0;
+        near[i] = standing.count(CellKey(cx[i] + dx, cy[i] + dy)) > 0;
       }
     }
   }

@@ -637,27 +637,28 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     auto is_dynamic = [&](std::size_t k) {
       return dyn != current_dynamic.end() && dyn->second.count(static_cast<std::uint32_t>(k));
     };
+    // The submap's points in the map frame, once for the overlap and fusion tests below.
+    PointVector in_map;
+    in_map.reserve(cs.points.size());
+    for (const Eigen::Vector3d& q : cs.points) in_map.push_back(T_map_c * q);
     std::size_t considered = 0, overlapping = 0;
     for (std::size_t k = 0; k < cs.points.size(); ++k) {
       if (is_dynamic(k)) continue;
       ++considered;
-      overlapping += overlap_grid.Near(T_map_c * cs.points[k]);
+      overlapping += overlap_grid.Near(in_map[k]);
     }
     const double ratio = considered ? static_cast<double>(overlapping) / considered : 0.0;
     if (partners[c].empty()) return;
     if (ratio < config_.fusion.min_overlap_ratio) {
       if (!config_.fusion.hold.enabled) return;
       for (std::size_t k = 0; k < cs.points.size(); ++k) {
-        if (!is_dynamic(k) && !fusion_grid.Near(T_map_c * cs.points[k])) {
+        if (!is_dynamic(k) && !fusion_grid.Near(in_map[k])) {
           unfused_new[c].push_back(static_cast<std::uint32_t>(k));
         }
       }
       return;
     }
     fused[c] = 1;
-    PointVector in_map;
-    in_map.reserve(cs.points.size());
-    for (const Eigen::Vector3d& q : cs.points) in_map.push_back(T_map_c * q);
     std::vector<float> height;
     std::vector<std::uint8_t> near_standing;
     if (use_fine) {
