@@ -20,6 +20,11 @@ Run by scripts/bench.d/dufomap.sh in the bench virtualenv (PyPI `dufomap`, `rosb
    world frame); the metrics only use distances between the two point sets, which are the same
    in any common frame. Our map (MAP_DIR, own SLAM poses) is scored in the same run with the
    transform cli.py uses for it (inverse truth pose of its first submap's first scan).
+4. Two more views of DUFOMap's output: resampled to one centroid per voxel of the kept radius
+   (as our map is, so that the radius rule treats both alike: in a dense output one point left
+   of an object keeps its truth points), and DynamicMap's own per-point rule (every input point
+   near a truth point is labelled by it and is kept or removed; the figures its benchmark
+   publishes). Our map is resampled, so only the radius rule applies to it.
 
 Ground truth is read here only for placing the scans and for scoring (benchmark code).
 Writes a JSON file and prints a Markdown table.
@@ -218,6 +223,54 @@ def peak_rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def point_keys(points, step_m=0.001):
+    """One int64 per point: its coordinates on a step_m grid (21 bits each, |coordinate| below
+    about 1000 m at 1 mm). DUFOMap's output points are copies of input points, so equal keys
+    find them among the input (two input points in one millimetre cell share a key)."""
+    q = np.round(np.asarray(points, dtype=np.float64).reshape(-1, 3) / step_m).astype(np.int64)
+    half = 1 << 20
+    if len(q) and (q.min() < -half or q.max() >= half):
+        raise ValueError('point_keys: a coordinate beyond %.0f m' % (half * step_m))
+    q += half
+    return (q[:, 0] << 42) | (q[:, 1] << 21) | q[:, 2]
+
+
+def voxel_centroids(points, voxel_m):
+    """The centroid of the points of each occupied voxel of edge voxel_m."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(points) == 0:
+        return points
+    cells = np.floor(points / voxel_m).astype(np.int64)
+    _, inverse = np.unique(cells, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    counts = np.bincount(inverse).astype(np.float64)
+    return np.stack([np.bincount(inverse, weights=points[:, k]) / counts for k in range(3)],
+                    axis=1)
+
+
+def per_point_figures(category, labels, kept):
+    """DynamicMap's per-point figures of a method whose output is a subset of its input.
+
+    category, labels: per labelled input point (dynamics.STATIC / LOW / HIGH, simulator class);
+    kept: whether the point is in the output. SA = static kept / static, DA = dynamic removed /
+    dynamic (None without such points)."""
+    category, labels, kept = np.asarray(category), np.asarray(labels), np.asarray(kept, bool)
+
+    def share(mask, value):
+        n = int(np.sum(mask))
+        return (None if n == 0 else float(np.sum(kept[mask] == value)) / n), n
+
+    static = category == dynamics.STATIC
+    sa, n_static = share(static, True)
+    low_da, n_low = share(category == dynamics.LOW, False)
+    high_da, n_high = share(category == dynamics.HIGH, False)
+    canopy_sa, n_canopy = share(static & (labels == dynamics.CANOPY_CLASS), True)
+    return {'static': {'sa': sa}, 'low': {'da': low_da}, 'high': {'da': high_da},
+            'canopy': {'sa': canopy_sa},
+            'points': {'static': n_static, 'low': n_low, 'high': n_high, 'canopy': n_canopy,
+                       'map': int(np.sum(kept))}}
+
+
 # ---------------------------------------------------------------------------------------------
 # The run
 # ---------------------------------------------------------------------------------------------
@@ -308,7 +361,7 @@ def run_dufomap(truth, data_dir, topic, options, scratch):
         'peak_rss_mb': rss,
         'placement_check': checks,
     }
-    return static, figures
+    return static, cloud, figures
 
 
 def score(truth, map_names, t_map_world, map_points, kept_radius, eval_range, options):
@@ -327,6 +380,20 @@ def score(truth, map_names, t_map_world, map_points, kept_radius, eval_range, op
     figures['label_voxel_m'] = voxel
     figures['points']['outside_eval_range'] = gt.excluded
     figures['t_map_world'] = tr.pose_to_list(t_map_world)
+    return figures, gt
+
+
+def score_per_point(gt, cloud, static, label_radius_m=0.15):
+    """DynamicMap's rule for DUFOMap: every input point (world frame) takes the category and
+    class of its nearest ground-truth point within label_radius_m (gt built with the identity,
+    so also restricted to the evaluation range; farther points are not scored) and counts as
+    kept when it is in DUFOMap's output `static`."""
+    index = neighbors.nearest_within(gt.points, cloud, label_radius_m)
+    labelled = index >= 0
+    kept = np.isin(point_keys(cloud[labelled]), point_keys(static))
+    figures = per_point_figures(gt.category[index[labelled]], gt.labels[index[labelled]], kept)
+    figures['points']['unlabelled_input'] = int(np.sum(~labelled))
+    figures['label_radius_m'] = label_radius_m
     return figures
 
 
@@ -377,7 +444,7 @@ def main(argv=None):
     truth = eval_io.Truth(options.data)
     topic = str(truth.index.get('lidar_topic', '/velodyne_points'))
     os.makedirs(options.scratch, exist_ok=True)
-    static, dufo = run_dufomap(truth, options.data, topic, options, options.scratch)
+    static, cloud, dufo = run_dufomap(truth, options.data, topic, options, options.scratch)
 
     parameters = eval_io.MapDir(options.map).parameters if options.map else {}
     kept_radius = options.kept_radius_m
@@ -388,10 +455,23 @@ def main(argv=None):
         eval_range = eval_cli.find_parameter(parameters, 'max_point_range_m') or 60.0
 
     started = time.time()
-    dufo['dynamics'] = score(truth, truth.session_names, np.eye(4), static, kept_radius,
-                             eval_range, options)
-    rows = [table_row('DUFOMap %s' % dufo['version'], 'truth', dufo['dynamics'],
-                      dufo['time_s']['dufomap_total'], dufo['peak_rss_mb'])]
+    dufo['dynamics'], gt = score(truth, truth.session_names, np.eye(4), static, kept_radius,
+                                 eval_range, options)
+    # Our rule favours a map resampled like ours: one point left of a car in DUFOMap's dense
+    # output keeps the car's truth points within kept_radius. Two more views of the same output:
+    # resampled to one centroid per submap voxel (as our map), and DynamicMap's own per-point rule.
+    centroids = voxel_centroids(static, kept_radius)
+    dufo['dynamics_voxel_centroids'], _ = score(truth, truth.session_names, np.eye(4), centroids,
+                                                kept_radius, eval_range, options)
+    dufo['dynamics_per_point'] = score_per_point(gt, cloud, static)
+    del cloud
+    name = 'DUFOMap %s' % dufo['version']
+    rows = [table_row(name, 'truth', dufo['dynamics'], dufo['time_s']['dufomap_total'],
+                      dufo['peak_rss_mb']),
+            table_row(name + ', %.1f m voxel centroids' % kept_radius, 'truth',
+                      dufo['dynamics_voxel_centroids'], None, None),
+            table_row(name + ', per point (DynamicMap rule)', 'truth',
+                      dufo['dynamics_per_point'], None, None)]
     result = {'format': 'multisession_mapper_bench_dufomap/1',
               'data': os.path.basename(os.path.normpath(options.data)),
               'sessions': truth.session_names, 'kept_radius_m': kept_radius,
@@ -400,7 +480,7 @@ def main(argv=None):
         map_dir, t_map_world, points, times = our_map(options.map, truth)
         ours = {'sessions': map_dir.session_names, 'timing': times,
                 'dynamics': score(truth, map_dir.session_names, t_map_world, points,
-                                  kept_radius, eval_range, options)}
+                                  kept_radius, eval_range, options)[0]}
         if map_dir.session_names != truth.session_names:
             ours['warning'] = 'the map holds sessions %s, DATA_DIR %s' % (
                 map_dir.session_names, truth.session_names)
@@ -419,6 +499,11 @@ def main(argv=None):
           % (dufo['version'], options.resolution, options.d_s, options.d_p, options.threads,
              dufo['scans'], dufo['ms_per_scan'] or 0.0, dufo['cpu_s']['dufomap_total'],
              dufo['time_s']['read_and_place'], dufo['input_points']))
+    print('Rows 1-2 use the evaluator\'s rule (a truth point is kept when the map has a point of '
+          'its category within %.2f m); row 3 scores every input point within %.2f m of a truth '
+          'point by whether DUFOMap\'s output holds it (%d input points not scored).'
+          % (kept_radius, dufo['dynamics_per_point']['label_radius_m'],
+             dufo['dynamics_per_point']['points']['unlabelled_input']))
     if options.map:
         print('multisession_mapper: time = sum of its mapping runs\' wall times, peak RSS = '
               'their maximum (timing/*.yaml of MAP_DIR, not this run); scored in its map '

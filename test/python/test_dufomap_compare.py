@@ -141,3 +141,37 @@ def test_markdown_table_rows_and_missing_values():
     lines = text.splitlines()
     assert len(lines) == 3 and lines[0].startswith('| method |')
     assert lines[2] == '| X | truth | 50.0 | - | 88.4 | 100.0 | 12 | 1.3 | - |'
+
+
+def test_point_keys_find_float32_copies_and_tell_points_apart():
+    cloud = np.array([[1.2341, -200.5, 3.0], [1.2361, -200.5, 3.0], [-999.0, 0.0, 999.0]],
+                     dtype=np.float32)
+    static = cloud[[2, 0]].copy()
+    kept = np.isin(dc.point_keys(cloud), dc.point_keys(static))
+    assert kept.tolist() == [True, False, True]
+    with pytest.raises(ValueError):
+        dc.point_keys(np.array([[1100.0, 0.0, 0.0]]))
+
+
+def test_voxel_centroids_one_mean_per_occupied_voxel():
+    points = np.array([[0.05, 0.05, 0.0], [0.15, 0.05, 0.0], [0.25, 0.0, 0.0], [-0.1, 0, 0]])
+    centroids = dc.voxel_centroids(points, 0.2)
+    got = sorted(map(tuple, np.round(centroids, 6)))
+    assert got == [(-0.1, 0.0, 0.0), (0.1, 0.05, 0.0), (0.25, 0.0, 0.0)]
+    assert dc.voxel_centroids(np.zeros((0, 3)), 0.2).shape == (0, 3)
+
+
+def test_per_point_figures_count_kept_static_and_removed_dynamic():
+    s, lo, hi = dc.dynamics.STATIC, dc.dynamics.LOW, dc.dynamics.HIGH
+    canopy = dc.dynamics.CANOPY_CLASS
+    category = [s, s, s, s, lo, lo, hi, hi, hi, hi]
+    labels = [0, 0, canopy, canopy, 7, 7, 9, 9, 10, 10]
+    kept = [1, 1, 1, 0, 0, 1, 0, 0, 0, 1]
+    f = dc.per_point_figures(category, labels, kept)
+    assert f['static']['sa'] == pytest.approx(0.75)
+    assert f['canopy']['sa'] == pytest.approx(0.5)
+    assert f['low']['da'] == pytest.approx(0.5)
+    assert f['high']['da'] == pytest.approx(0.75)
+    assert f['points']['map'] == 5 and f['points']['high'] == 4
+    empty = dc.per_point_figures([s], [0], [1])
+    assert empty['low']['da'] is None and empty['high']['da'] is None
