@@ -90,7 +90,7 @@ TEST(ParameterMapping, EveryParameterReachesTheCoreAndComesBack) {
     core::OdometryConfig c;
     ApplyScanMatchingConfig(p, &c);
     ExpectSameValues(ToScanMatchingConfig(c), p, "ScanMatching");
-    EXPECT_EQ(changed, 8);
+    EXPECT_EQ(changed, 10);
   }
   {
     const SubmapManagerConfig p = Perturbed<SubmapManagerConfig>({}, &changed);

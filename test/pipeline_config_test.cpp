@@ -78,6 +78,12 @@ TEST(PipelineConfig, ErrorsNameTheProblem) {
   EXPECT_NE(error("submap:\n  max_translation_m: far\n").find("wrong type"), std::string::npos);
   EXPECT_NE(error("submap:\n  max_translation_m: -4\n").find("max_translation_m"),
             std::string::npos);
+  EXPECT_NE(error("odometry:\n  map_ground_min_normal_z: 1.5\n").find("map_ground_min_normal_z"),
+            std::string::npos);
+  EXPECT_NE(error("odometry:\n  map_ground_min_depth_m: .nan\n").find("map_ground_min_depth_m"),
+            std::string::npos);
+  EXPECT_TRUE(
+      PipelineConfigFromYaml("odometry:\n  map_ground_min_depth_m: .inf\n", "off.yaml").ok());
   EXPECT_NE(error("[1, 2").find("my.yaml"), std::string::npos);
   EXPECT_NE(error("submap: 3\n").find("mapping"), std::string::npos);
   EXPECT_FALSE(LoadPipelineConfig("/nonexistent/config.yaml").ok());

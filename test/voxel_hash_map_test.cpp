@@ -362,6 +362,30 @@ TEST(VoxelHashMapTest, PlaneGivesNormalAndUpdatesInvalidateIt) {
   EXPECT_TRUE(!match.has_normal || std::abs(match.normal.z()) < 0.999);
 }
 
+TEST(VoxelHashMapTest, PlaneNormalAtNeedsMoreThanOneRingLine) {
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.SetNormalsEnabled(false);  // PlaneNormalAt does not depend on it
+  // One ring arc on flat ground 20 m away: a line with 2 cm of range jitter, no plane.
+  PointVector ring;
+  for (int k = -40; k <= 40; ++k) {
+    const double a = k * 0.0035, r = 20.0 + 0.02 * ((k % 3) - 1);
+    ring.emplace_back(r * std::cos(a), r * std::sin(a), -1.8);
+  }
+  map.AddPoints(ring);
+  Eigen::Vector3d n;
+  EXPECT_FALSE(map.PlaneNormalAt(Eigen::Vector3d(20.0, 0.0, -1.8), &n));
+  // The same ground seen from two more places: three ring arcs 0.4 m apart make a plane.
+  for (double dr : {0.4, 0.8}) {
+    PointVector more;
+    for (const Eigen::Vector3d& p : ring) more.push_back(p * (1.0 + dr / 20.0));
+    for (Eigen::Vector3d& p : more) p.z() = -1.8;
+    map.AddPoints(more);
+  }
+  ASSERT_TRUE(map.PlaneNormalAt(Eigen::Vector3d(20.2, 0.0, -1.8), &n));
+  EXPECT_GT(std::abs(n.z()), 0.99);
+  EXPECT_FALSE(map.PlaneNormalAt(Eigen::Vector3d(0.0, 0.0, -1.8), &n));  // nothing there
+}
+
 TEST(VoxelHashMapTest, ValidateNamesTheBadField) {
   VoxelHashMapConfig config;
   config.voxel_size_m = 0.0;

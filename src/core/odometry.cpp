@@ -49,6 +49,12 @@ Status OdometryConfig::Validate() const {
         "odometry.high_point_min_height_m must be a number (inf: off) and "
         "odometry.high_point_max_normal_z in [0, 1]");
   }
+  if (std::isnan(map_ground_min_depth_m) ||
+      !(map_ground_min_normal_z >= 0.0 && map_ground_min_normal_z <= 1.0)) {
+    return Status::Error(
+        "odometry.map_ground_min_depth_m must be a number (inf: off) and "
+        "odometry.map_ground_min_normal_z in [0, 1]");
+  }
   if (!std::isfinite(registration_voxel_size_m) ||
       registration_voxel_size_m < map_voxel_size_m) {
     return Status::Error("odometry.registration_voxel_size_m must be >= map_voxel_size_m, got " +
@@ -185,17 +191,21 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   IcpTranslationPrior prior;
   prior.translation = result.prediction.translation();
   prior.weight = continuous ? config_.motion_prior_weight : 0.0;
-  // Registers at the configured convergence, or at the judge's steps.
+  // Registers at the configured convergence, or at the judge's steps; with_map_ground: with
+  // the far ground's map normals too (the final refinement below, not the fits compared).
   const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m,
-                                 bool at_judge_steps) {
+                                 bool at_judge_steps, bool with_map_ground = false) {
     const IcpRegistration& runner = at_judge_steps ? judge_icp_ : icp_;
     StatusOr<IcpResult> icp = Status::Error("icp: not run");
     if (source_normals.empty()) {
       icp = runner.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
     } else {
       local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
-      icp = runner.Register(source, source_normals, local_map_, guess, max_distance_m, kernel_m,
-                            prior);
+      icp = with_map_ground
+                ? runner.Register(source, WithMapGroundNormals(source, source_normals, guess),
+                                  local_map_, guess, max_distance_m, kernel_m, prior)
+                : runner.Register(source, source_normals, local_map_, guess, max_distance_m,
+                                  kernel_m, prior);
       local_map_.SetNormalsEnabled(true);
     }
     ++result.registrations;
@@ -321,11 +331,13 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       LidarScan deskewed;
       PointVector map_points;
       se3::Vector6d velocity;
+      PointVector source, source_normals;
       bool changed = false;
     };
     // The registration's scan and points move into `best`; prepare() refills result's.
     Best best{result.icp.mean_weight * config_.turn_hypothesis_margin, estimate, result.icp,
-              std::move(result.deskewed_scan), std::move(result.map_points), estimated_velocity};
+              std::move(result.deskewed_scan), std::move(result.map_points), estimated_velocity,
+              std::move(source), std::move(source_normals)};
     for (double rate : rates) {
       se3::Vector6d v = velocity;
       v(5) = rate;
@@ -335,16 +347,38 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       if (!h.ok() || !(h.value().mean_weight > best.score)) continue;
       best = Best{h.value().mean_weight, h.value().pose, h.value(),
                   std::move(result.deskewed_scan), std::move(result.map_points),
-                  WindowVelocity(h.value().pose, scan.stamp_s), true};
+                  WindowVelocity(h.value().pose, scan.stamp_s), std::move(source),
+                  std::move(source_normals), true};
     }
-    // Leave the chosen hypothesis' scan behind (prepare overwrote it).
+    // Leave the chosen hypothesis' scan and points behind (prepare overwrote them).
     result.deskewed_scan = std::move(best.deskewed);
     result.map_points = std::move(best.map_points);
+    source = std::move(best.source);
+    source_normals = std::move(best.source_normals);
     if (best.changed) {
       result.turn_hypothesis_won = true;
       estimate = best.pose;
       result.icp = best.icp;
       estimated_velocity = best.velocity;
+    }
+    result.timing.registration_ms += watch.Lap();
+  }
+
+  if (result.registered && !source_normals.empty() &&
+      std::isfinite(config_.map_ground_min_depth_m)) {
+    // The chosen fit refined with the far ground's map normals (see the config). Only here:
+    // ground pairs say nothing about yaw but fit well under a wrong one, and in the fits
+    // compared above (prior release, turn hypotheses) they blurred the kernel weights that
+    // tell a lost turn (seed 1 s02's turn at 239 s went 3.3 deg wrong). The scan keeps that
+    // fit's mean weight for the recent median.
+    watch.Lap();
+    StatusOr<IcpResult> refined = register_scan(estimate, max_distance_m, kernel_m, judged, true);
+    if (refined.ok()) {
+      // Ground planes measure height, roll and pitch: only those are taken from the
+      // refinement; heading and horizontal position stay the chosen fit's (a refinement
+      // moving them changed the velocity estimates before that turn and lost it again).
+      estimate = WithTiltAndHeightOf(estimate, refined.value().pose);
+      if (continuous && dt > 0.0) estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
     }
     result.timing.registration_ms += watch.Lap();
   }
@@ -445,6 +479,39 @@ se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) co
                                                     stamp_s - rotation_from.stamp_s)
                            .tail<3>();
   return velocity;
+}
+
+Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other) {
+  // Heading of `pose`: its x axis projected on the horizontal plane (or y near vertical).
+  const Eigen::Matrix3d& R = pose.linear();
+  Eigen::Vector3d ahead(R(0, 0), R(1, 0), 0.0);
+  if (ahead.norm() < 1e-6) ahead = Eigen::Vector3d(-R(1, 1), R(0, 1), 0.0);
+  const double yaw = std::atan2(ahead.y(), ahead.x());
+  // `other` with its heading replaced: undo its yaw, apply pose's (z axis rotations).
+  const Eigen::Matrix3d& O = other.linear();
+  Eigen::Vector3d other_ahead(O(0, 0), O(1, 0), 0.0);
+  if (other_ahead.norm() < 1e-6) other_ahead = Eigen::Vector3d(-O(1, 1), O(0, 1), 0.0);
+  const double other_yaw = std::atan2(other_ahead.y(), other_ahead.x());
+  Pose3 out = pose;
+  out.linear() = Eigen::AngleAxisd(yaw - other_yaw, Eigen::Vector3d::UnitZ()) * O;
+  out.translation().z() = other.translation().z();
+  return se3::Normalized(out);
+}
+
+PointVector Odometry::WithMapGroundNormals(const PointVector& source,
+                                           const PointVector& normals,
+                                           const Pose3& guess) const {
+  PointVector out = normals;
+  if (!std::isfinite(config_.map_ground_min_depth_m) || local_map_.empty()) return out;
+  const Eigen::Matrix3d R_sensor_map = guess.linear().transpose();
+  Eigen::Vector3d n;
+  for (std::size_t i = 0; i < source.size() && i < out.size(); ++i) {
+    if (!out[i].isZero(0.0) || source[i].z() > -config_.map_ground_min_depth_m) continue;
+    if (!local_map_.PlaneNormalAt(guess * source[i], &n)) continue;
+    if (std::abs(n.z()) < config_.map_ground_min_normal_z) continue;
+    out[i] = R_sensor_map * (n.z() < 0.0 ? -n : n);
+  }
+  return out;
 }
 
 void Odometry::InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose) {

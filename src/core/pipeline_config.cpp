@@ -40,6 +40,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "use_scan_normals", &s.odometry.use_scan_normals},
       {"odometry", "high_point_min_height_m", &s.odometry.high_point_min_height_m},
       {"odometry", "high_point_max_normal_z", &s.odometry.high_point_max_normal_z},
+      {"odometry", "map_ground_min_depth_m", &s.odometry.map_ground_min_depth_m},
+      {"odometry", "map_ground_min_normal_z", &s.odometry.map_ground_min_normal_z},
       {"odometry", "correspondence_sigma_factor", &s.odometry.correspondence_sigma_factor},
       {"odometry", "kernel_sigma_factor", &s.odometry.kernel_sigma_factor},
       {"odometry", "motion_prior_weight", &s.odometry.motion_prior_weight},

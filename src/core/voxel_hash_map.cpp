@@ -443,6 +443,10 @@ VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
   return acc.Normal(config_.plane, normal) ? NormalState::kPlanar : NormalState::kNotPlanar;
 }
 
+bool VoxelHashMap::PlaneNormalAt(const Eigen::Vector3d& p, Eigen::Vector3d* normal) const {
+  return ComputeNormal(p, IndexOf(p), normal) == NormalState::kPlanar;
+}
+
 PointVector VoxelHashMap::Points() const {
   PointVector out;
   out.reserve(NumPoints());

@@ -15,6 +15,8 @@ namespace ros_params {
   F(odometry_registration_voxel_size_m, o.registration_voxel_size_m)         \
   F(odometry_high_point_min_height_m, o.high_point_min_height_m)             \
   F(odometry_high_point_max_normal_z, o.high_point_max_normal_z)             \
+  F(odometry_map_ground_min_depth_m, o.map_ground_min_depth_m)               \
+  F(odometry_map_ground_min_normal_z, o.map_ground_min_normal_z)             \
   F(odometry_max_scan_gap_s, o.max_scan_gap_s)                               \
   F(odometry_motion_prior_weight, o.motion_prior_weight)
 

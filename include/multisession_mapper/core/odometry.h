@@ -99,6 +99,16 @@ struct OdometryConfig {
   /// height disables it.
   double high_point_min_height_m = 1.0;
   double high_point_max_normal_z = 0.3;
+  /// With scan normals: a registration point without one (its neighbouring ring lies farther
+  /// than the patch reaches: on the ground beyond ~10 m) that lies at least
+  /// `map_ground_min_depth_m` below the sensor [m] takes the local map's normal at its
+  /// predicted place when that is planar (more than one ring line: the map holds the ground
+  /// from several scans) and within acos(`map_ground_min_normal_z`) of vertical. Without it
+  /// only the nearest ground rings (5-8 m) and walls held roll and pitch (the far ground had
+  /// 13-17x less tilt information than its points could give), and the tilt jittered by
+  /// 0.1-0.25 deg per 10 s where walls were few. .inf: off.
+  double map_ground_min_depth_m = 1.0;
+  double map_ground_min_normal_z = 0.9;
   /// Per scan: correspondence distance = factor * sigma, kernel scale = factor * sigma
   /// (KISS-ICP: 3 and 1/3, but its Geman-McClure weight k^2 / (k + r^2)^2 is wider than ours,
   /// k^2 / (k^2 + r^2)^2). Measured with scan normals on the small simulator sessions (ATE
@@ -284,6 +294,10 @@ struct OdometryResult {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
+/// `other`'s roll, pitch and height with `pose`'s heading and horizontal position (heading:
+/// the horizontal direction of the x axis).
+Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other);
+
 class Odometry {
  public:
   static StatusOr<Odometry> Create(const OdometryConfig& config,
@@ -307,6 +321,10 @@ class Odometry {
            Deskewer deskewer, VoxelHashMap map, IcpRegistration icp,
            IcpRegistration judge_icp, AdaptiveThreshold threshold);
   void InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose);
+  /// `normals` (per point of `source`, sensor frame; zero = none) with the local map's
+  /// ground normals added at the places `guess` predicts (see map_ground_min_depth_m).
+  PointVector WithMapGroundNormals(const PointVector& source, const PointVector& normals,
+                                   const Pose3& guess) const;
   /// Mean twist from the oldest pose of the window to `estimate` at `stamp_s` (the scan
   /// being processed); zero without an earlier pose since the last gap.
   se3::Vector6d WindowVelocity(const Pose3& estimate, double stamp_s) const;

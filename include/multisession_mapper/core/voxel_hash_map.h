@@ -79,6 +79,10 @@ class VoxelHashMap : public RegistrationTarget {
   /// false: FindMatch returns no normals (has_normal false) and computes none, e.g. when the
   /// ICP takes its normals from the source scan (the normals are most of a match's cost).
   void SetNormalsEnabled(bool enabled) { normals_enabled_ = enabled; }
+  /// The normal of the map's surface at `p` (map frame): the covariance of the map points
+  /// within normal_radius_m of p, with the planarity test of `config().plane` (a single ring
+  /// line is no plane). False where it fails. Not cached; independent of SetNormalsEnabled.
+  bool PlaneNormalAt(const Eigen::Vector3d& p, Eigen::Vector3d* normal) const;
   bool empty() const override { return voxels_.empty(); }
   /// FindMatches answers given from a query's memory without a search since the map was
   /// created (see QueryMemory; including "none within the bound"), for tests and profiling.
