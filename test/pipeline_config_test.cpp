@@ -82,6 +82,8 @@ TEST(PipelineConfig, ErrorsNameTheProblem) {
             std::string::npos);
   EXPECT_NE(error("odometry:\n  map_ground_min_depth_m: .nan\n").find("map_ground_min_depth_m"),
             std::string::npos);
+  EXPECT_NE(error("odometry:\n  map_ground_min_depth_m: -.inf\n").find("map_ground_min_depth_m"),
+            std::string::npos);
   EXPECT_TRUE(
       PipelineConfigFromYaml("odometry:\n  map_ground_min_depth_m: .inf\n", "off.yaml").ok());
   EXPECT_NE(error("[1, 2").find("my.yaml"), std::string::npos);

@@ -368,7 +368,7 @@ TEST(VoxelHashMapTest, PlaneNormalAtNeedsMoreThanOneRingLine) {
   // One ring arc on flat ground 20 m away: a line with 2 cm of range jitter, no plane.
   PointVector ring;
   for (int k = -40; k <= 40; ++k) {
-    const double a = k * 0.0035, r = 20.0 + 0.02 * ((k % 3) - 1);
+    const double a = k * 0.0035, r = 20.0 + 0.02 * ((k + 42) % 3 - 1);  // +-2 cm
     ring.emplace_back(r * std::cos(a), r * std::sin(a), -1.8);
   }
   map.AddPoints(ring);

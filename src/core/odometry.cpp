@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -50,6 +51,7 @@ Status OdometryConfig::Validate() const {
         "odometry.high_point_max_normal_z in [0, 1]");
   }
   if (std::isnan(map_ground_min_depth_m) ||
+      map_ground_min_depth_m == -std::numeric_limits<double>::infinity() ||
       !(map_ground_min_normal_z >= 0.0 && map_ground_min_normal_z <= 1.0)) {
     return Status::Error(
         "odometry.map_ground_min_depth_m must be a number (inf: off) and "
@@ -191,21 +193,18 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   IcpTranslationPrior prior;
   prior.translation = result.prediction.translation();
   prior.weight = continuous ? config_.motion_prior_weight : 0.0;
-  // Registers at the configured convergence, or at the judge's steps; with_map_ground: with
-  // the far ground's map normals too (the final refinement below, not the fits compared).
+  // Registers at the configured convergence, or at the judge's steps; `normals` replaces
+  // source_normals (the final refinement below, with the far ground's map normals).
   const auto register_scan = [&](const Pose3& guess, double max_distance_m, double kernel_m,
-                                 bool at_judge_steps, bool with_map_ground = false) {
+                                 bool at_judge_steps, const PointVector* normals = nullptr) {
     const IcpRegistration& runner = at_judge_steps ? judge_icp_ : icp_;
     StatusOr<IcpResult> icp = Status::Error("icp: not run");
     if (source_normals.empty()) {
       icp = runner.Register(source, local_map_, guess, max_distance_m, kernel_m, prior);
     } else {
       local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
-      icp = with_map_ground
-                ? runner.Register(source, WithMapGroundNormals(source, source_normals, guess),
-                                  local_map_, guess, max_distance_m, kernel_m, prior)
-                : runner.Register(source, source_normals, local_map_, guess, max_distance_m,
-                                  kernel_m, prior);
+      icp = runner.Register(source, normals != nullptr ? *normals : source_normals, local_map_,
+                            guess, max_distance_m, kernel_m, prior);
       local_map_.SetNormalsEnabled(true);
     }
     ++result.registrations;
@@ -371,8 +370,16 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     // compared above (prior release, turn hypotheses) they blurred the kernel weights that
     // tell a lost turn (seed 1 s02's turn at 239 s went 3.3 deg wrong). The scan keeps that
     // fit's mean weight for the recent median.
+    // Skipped when no point qualifies (also the dynamic_reconfigure "off": a depth no point
+    // reaches).
     watch.Lap();
-    StatusOr<IcpResult> refined = register_scan(estimate, max_distance_m, kernel_m, judged, true);
+    std::size_t added = 0;
+    const PointVector ground_normals =
+        WithMapGroundNormals(source, source_normals, estimate, &added);
+    StatusOr<IcpResult> refined = Status::Error("no map ground normal");
+    if (added > 0) {
+      refined = register_scan(estimate, max_distance_m, kernel_m, judged, &ground_normals);
+    }
     if (refined.ok()) {
       // Ground planes measure height, roll and pitch: only those are taken from the
       // refinement; heading and horizontal position stay the chosen fit's (a refinement
@@ -481,27 +488,34 @@ se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) co
   return velocity;
 }
 
+namespace {
+
+// Heading of a rotation: the angle of its x axis projected on the horizontal plane; nullopt
+// when that axis is (nearly) vertical.
+std::optional<double> HeadingOf(const Eigen::Matrix3d& R) {
+  if (std::hypot(R(0, 0), R(1, 0)) < 1e-6) return std::nullopt;
+  return std::atan2(R(1, 0), R(0, 0));
+}
+
+}  // namespace
+
 Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other) {
-  // Heading of `pose`: its x axis projected on the horizontal plane (or y near vertical).
-  const Eigen::Matrix3d& R = pose.linear();
-  Eigen::Vector3d ahead(R(0, 0), R(1, 0), 0.0);
-  if (ahead.norm() < 1e-6) ahead = Eigen::Vector3d(-R(1, 1), R(0, 1), 0.0);
-  const double yaw = std::atan2(ahead.y(), ahead.x());
-  // `other` with its heading replaced: undo its yaw, apply pose's (z axis rotations).
-  const Eigen::Matrix3d& O = other.linear();
-  Eigen::Vector3d other_ahead(O(0, 0), O(1, 0), 0.0);
-  if (other_ahead.norm() < 1e-6) other_ahead = Eigen::Vector3d(-O(1, 1), O(0, 1), 0.0);
-  const double other_yaw = std::atan2(other_ahead.y(), other_ahead.x());
+  const std::optional<double> yaw = HeadingOf(pose.linear());
+  const std::optional<double> other_yaw = HeadingOf(other.linear());
+  if (!yaw || !other_yaw) return pose;  // no heading to keep (never on a ground robot)
+  // `other` turned about the vertical by the heading difference: a rotation about the world z
+  // axis in front keeps its body roll and pitch.
   Pose3 out = pose;
-  out.linear() = Eigen::AngleAxisd(yaw - other_yaw, Eigen::Vector3d::UnitZ()) * O;
+  out.linear() = Eigen::AngleAxisd(*yaw - *other_yaw, Eigen::Vector3d::UnitZ()) * other.linear();
   out.translation().z() = other.translation().z();
   return se3::Normalized(out);
 }
 
 PointVector Odometry::WithMapGroundNormals(const PointVector& source,
-                                           const PointVector& normals,
-                                           const Pose3& guess) const {
+                                           const PointVector& normals, const Pose3& guess,
+                                           std::size_t* added) const {
   PointVector out = normals;
+  *added = 0;
   if (!std::isfinite(config_.map_ground_min_depth_m) || local_map_.empty()) return out;
   const Eigen::Matrix3d R_sensor_map = guess.linear().transpose();
   Eigen::Vector3d n;
@@ -510,6 +524,7 @@ PointVector Odometry::WithMapGroundNormals(const PointVector& source,
     if (!local_map_.PlaneNormalAt(guess * source[i], &n)) continue;
     if (std::abs(n.z()) < config_.map_ground_min_normal_z) continue;
     out[i] = R_sensor_map * (n.z() < 0.0 ? -n : n);
+    ++*added;
   }
   return out;
 }

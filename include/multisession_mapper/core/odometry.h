@@ -106,7 +106,8 @@ struct OdometryConfig {
   /// from several scans) and within acos(`map_ground_min_normal_z`) of vertical. Without it
   /// only the nearest ground rings (5-8 m) and walls held roll and pitch (the far ground had
   /// 13-17x less tilt information than its points could give), and the tilt jittered by
-  /// 0.1-0.25 deg per 10 s where walls were few. .inf: off.
+  /// 0.1-0.25 deg per 10 s where walls were few. .inf: off (dynamic_reconfigure: 1000, a
+  /// depth no point reaches; the refinement is skipped when no point qualifies).
   double map_ground_min_depth_m = 1.0;
   double map_ground_min_normal_z = 0.9;
   /// Per scan: correspondence distance = factor * sigma, kernel scale = factor * sigma
@@ -285,7 +286,9 @@ struct OdometryResult {
   LidarScan deskewed_scan;
   /// Map-resolution downsample of deskewed_scan (sensor frame), what went into the map.
   PointVector map_points;
-  IcpResult icp;         ///< valid when registered
+  /// Valid when registered: the chosen fit. `pose` can differ from icp.pose in height, roll
+  /// and pitch (the map-ground refinement, see map_ground_min_depth_m).
+  IcpResult icp;
   double sigma_m = 0.0;  ///< adaptive threshold used for this scan
   InputFilterStats filter_stats;
   DeskewStats deskew_stats;
@@ -322,9 +325,10 @@ class Odometry {
            IcpRegistration judge_icp, AdaptiveThreshold threshold);
   void InsertIntoMap(const PointVector& points_in_sensor, const Pose3& pose);
   /// `normals` (per point of `source`, sensor frame; zero = none) with the local map's
-  /// ground normals added at the places `guess` predicts (see map_ground_min_depth_m).
+  /// ground normals added at the places `guess` predicts (see map_ground_min_depth_m);
+  /// `added` gets their number.
   PointVector WithMapGroundNormals(const PointVector& source, const PointVector& normals,
-                                   const Pose3& guess) const;
+                                   const Pose3& guess, std::size_t* added) const;
   /// Mean twist from the oldest pose of the window to `estimate` at `stamp_s` (the scan
   /// being processed); zero without an earlier pose since the last gap.
   se3::Vector6d WindowVelocity(const Pose3& estimate, double stamp_s) const;
