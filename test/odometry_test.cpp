@@ -536,33 +536,6 @@ TEST(OdometryTest, MapGroundNormalsSteadyTheTilt) {
   EXPECT_LE(with.max_rotation_deg, without.max_rotation_deg + 0.05);
 }
 
-// Heading and horizontal position of one pose, roll, pitch and height of the other.
-TEST(OdometryTest, WithTiltAndHeightOfKeepsHeadingAndPosition) {
-  Pose3 pose = Pose3::Identity();
-  pose.linear() = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY()))
-                      .toRotationMatrix();
-  pose.translation() = Eigen::Vector3d(3.0, -2.0, 1.0);
-  Pose3 other = Pose3::Identity();
-  other.linear() = (Eigen::AngleAxisd(0.75, Eigen::Vector3d::UnitZ()) *
-                    Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()) *
-                    Eigen::AngleAxisd(-0.03, Eigen::Vector3d::UnitX()))
-                       .toRotationMatrix();
-  other.translation() = Eigen::Vector3d(3.2, -2.1, 1.3);
-  const Pose3 out = WithTiltAndHeightOf(pose, other);
-  EXPECT_NEAR(out.translation().x(), 3.0, 1e-12);
-  EXPECT_NEAR(out.translation().y(), -2.0, 1e-12);
-  EXPECT_NEAR(out.translation().z(), 1.3, 1e-12);
-  const Eigen::Vector3d ypr = out.rotation().eulerAngles(2, 1, 0);
-  EXPECT_NEAR(ypr(0), 0.7, 1e-9);
-  EXPECT_NEAR(ypr(1), 0.02, 1e-9);
-  EXPECT_NEAR(ypr(2), -0.03, 1e-9);
-  // A pose whose x axis is vertical has no heading to keep: unchanged.
-  Pose3 upright = Pose3::Identity();
-  upright.linear() = Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  EXPECT_TRUE(WithTiltAndHeightOf(upright, other).isApprox(upright));
-}
-
 // Campus s02 seed 3, scans 5250-5370: a sharp right turn whose yaw rate steps 0 -> -0.4 rad/s
 // within the scan at 528.8 s (the first pose it shows in: 528.9 s) and back at 532.8 s. With
 // the motion prior on every scan, the scans de-skewed with the old yaw rate fit poorly and the

@@ -87,6 +87,33 @@ TEST(Se3, IsValidRejectsNonOrthonormalAndNaN) {
   EXPECT_FALSE(se3::IsValid(mirror));
 }
 
+// Heading and horizontal position of one pose, roll, pitch and height of the other.
+TEST(Se3, WithTiltAndHeightOfKeepsHeadingAndPosition) {
+  Pose3 pose = Pose3::Identity();
+  pose.linear() = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
+                   Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitY()))
+                      .toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(3.0, -2.0, 1.0);
+  Pose3 other = Pose3::Identity();
+  other.linear() = (Eigen::AngleAxisd(0.75, Eigen::Vector3d::UnitZ()) *
+                    Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()) *
+                    Eigen::AngleAxisd(-0.03, Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix();
+  other.translation() = Eigen::Vector3d(3.2, -2.1, 1.3);
+  const Pose3 out = se3::WithTiltAndHeightOf(pose, other);
+  EXPECT_NEAR(out.translation().x(), 3.0, 1e-12);
+  EXPECT_NEAR(out.translation().y(), -2.0, 1e-12);
+  EXPECT_NEAR(out.translation().z(), 1.3, 1e-12);
+  const Eigen::Vector3d ypr = out.rotation().eulerAngles(2, 1, 0);
+  EXPECT_NEAR(ypr(0), 0.7, 1e-9);
+  EXPECT_NEAR(ypr(1), 0.02, 1e-9);
+  EXPECT_NEAR(ypr(2), -0.03, 1e-9);
+  // A pose whose x axis is vertical has no heading to keep: unchanged.
+  Pose3 upright = Pose3::Identity();
+  upright.linear() = Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  EXPECT_TRUE(se3::WithTiltAndHeightOf(upright, other).isApprox(upright));
+}
+
 }  // namespace
 }  // namespace core
 }  // namespace multisession_mapper

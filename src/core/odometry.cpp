@@ -384,7 +384,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       // Ground planes measure height, roll and pitch: only those are taken from the
       // refinement; heading and horizontal position stay the chosen fit's (a refinement
       // moving them changed the velocity estimates before that turn and lost it again).
-      estimate = WithTiltAndHeightOf(estimate, refined.value().pose);
+      estimate = se3::WithTiltAndHeightOf(estimate, refined.value().pose);
       if (continuous && dt > 0.0) estimated_velocity = WindowVelocity(estimate, scan.stamp_s);
     }
     result.timing.registration_ms += watch.Lap();
@@ -488,35 +488,12 @@ se3::Vector6d Odometry::WindowVelocity(const Pose3& estimate, double stamp_s) co
   return velocity;
 }
 
-namespace {
-
-// Heading of a rotation: the angle of its x axis projected on the horizontal plane; nullopt
-// when that axis is (nearly) vertical.
-std::optional<double> HeadingOf(const Eigen::Matrix3d& R) {
-  if (std::hypot(R(0, 0), R(1, 0)) < 1e-6) return std::nullopt;
-  return std::atan2(R(1, 0), R(0, 0));
-}
-
-}  // namespace
-
-Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other) {
-  const std::optional<double> yaw = HeadingOf(pose.linear());
-  const std::optional<double> other_yaw = HeadingOf(other.linear());
-  if (!yaw || !other_yaw) return pose;  // no heading to keep (never on a ground robot)
-  // `other` turned about the vertical by the heading difference: a rotation about the world z
-  // axis in front keeps its body roll and pitch.
-  Pose3 out = pose;
-  out.linear() = Eigen::AngleAxisd(*yaw - *other_yaw, Eigen::Vector3d::UnitZ()) * other.linear();
-  out.translation().z() = other.translation().z();
-  return se3::Normalized(out);
-}
-
 PointVector Odometry::WithMapGroundNormals(const PointVector& source,
                                            const PointVector& normals, const Pose3& guess,
                                            std::size_t* added) const {
   PointVector out = normals;
   *added = 0;
-  if (!std::isfinite(config_.map_ground_min_depth_m) || local_map_.empty()) return out;
+  if (local_map_.empty()) return out;  // (the caller skips an infinite depth: off)
   const Eigen::Matrix3d R_sensor_map = guess.linear().transpose();
   Eigen::Vector3d n;
   for (std::size_t i = 0; i < source.size() && i < out.size(); ++i) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace multisession_mapper {
 namespace core {
@@ -79,6 +80,29 @@ bool IsValid(const Pose3& pose, double tolerance) {
   const Eigen::Matrix3d r = pose.linear();
   if (!(r.transpose() * r).isApprox(Eigen::Matrix3d::Identity(), tolerance)) return false;
   return std::abs(r.determinant() - 1.0) < tolerance * 10.0;
+}
+
+namespace {
+
+// Heading of a rotation: the angle of its x axis projected on the horizontal plane; nullopt
+// when that axis is (nearly) vertical.
+std::optional<double> HeadingOf(const Eigen::Matrix3d& R) {
+  if (std::hypot(R(0, 0), R(1, 0)) < 1e-6) return std::nullopt;
+  return std::atan2(R(1, 0), R(0, 0));
+}
+
+}  // namespace
+
+Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other) {
+  const std::optional<double> yaw = HeadingOf(pose.linear());
+  const std::optional<double> other_yaw = HeadingOf(other.linear());
+  if (!yaw || !other_yaw) return pose;  // no heading to keep (never on a ground robot)
+  // `other` turned about the vertical by the heading difference: a rotation about the world z
+  // axis in front keeps its body roll and pitch.
+  Pose3 out = pose;
+  out.linear() = Eigen::AngleAxisd(*yaw - *other_yaw, Eigen::Vector3d::UnitZ()) * other.linear();
+  out.translation().z() = other.translation().z();
+  return Normalized(out);
 }
 
 }  // namespace se3

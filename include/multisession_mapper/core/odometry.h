@@ -287,7 +287,8 @@ struct OdometryResult {
   /// Map-resolution downsample of deskewed_scan (sensor frame), what went into the map.
   PointVector map_points;
   /// Valid when registered: the chosen fit. `pose` can differ from icp.pose in height, roll
-  /// and pitch (the map-ground refinement, see map_ground_min_depth_m).
+  /// and pitch (the map-ground refinement, see map_ground_min_depth_m and
+  /// se3::WithTiltAndHeightOf).
   IcpResult icp;
   double sigma_m = 0.0;  ///< adaptive threshold used for this scan
   InputFilterStats filter_stats;
@@ -296,10 +297,6 @@ struct OdometryResult {
 
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
-
-/// `other`'s roll, pitch and height with `pose`'s heading and horizontal position (heading:
-/// the horizontal direction of the x axis).
-Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other);
 
 class Odometry {
  public:

@@ -47,6 +47,11 @@ Pose3 Normalized(const Pose3& pose);
 /// True when every coefficient is finite and the rotation is orthonormal within `tolerance`.
 bool IsValid(const Pose3& pose, double tolerance = 1e-6);
 
+/// `other`'s roll, pitch and height with `pose`'s heading and horizontal position (heading:
+/// the horizontal direction of the x axis). `pose` unchanged when either x axis is vertical
+/// (no heading to keep).
+Pose3 WithTiltAndHeightOf(const Pose3& pose, const Pose3& other);
+
 }  // namespace se3
 }  // namespace core
 }  // namespace multisession_mapper
