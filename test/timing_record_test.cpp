@@ -49,6 +49,7 @@ TEST(TimingRecord, YamlHasTheOdometryStagesAndIcpWork) {
   core::SessionTimings timings;
   timings.odometry_registration_ms = {4.0, 8.0, 6.0};
   timings.odometry_deskew_ms = {1.0};
+  timings.odometry_map_ground_ms = {0.5, 1.5};
   timings.odometry_icp_iterations = {10.0, 30.0, 12.0, 14.0};
   timings.odometry_registrations = {1.0, 1.0, 3.0};
   const YAML::Node yaml = YAML::Load(core::TimingYaml(timings, core::SessionRunInfo{}));
@@ -58,6 +59,8 @@ TEST(TimingRecord, YamlHasTheOdometryStagesAndIcpWork) {
   EXPECT_EQ(stages["registration"]["samples"].as<int>(), 3);
   EXPECT_DOUBLE_EQ(stages["deskew"]["median"].as<double>(), 1.0);
   EXPECT_EQ(stages["filter"]["samples"].as<int>(), 0);
+  EXPECT_DOUBLE_EQ(stages["map_ground"]["median"].as<double>(), 1.0);
+  EXPECT_EQ(stages["map_ground"]["samples"].as<int>(), 2);
   ASSERT_TRUE(stages["map_update"].IsMap());
   ASSERT_TRUE(stages["downsample_normals"].IsMap());
   const YAML::Node icp = yaml["odometry_icp_per_scan"];

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "multisession_mapper/core/local_plane.h"
 #include "multisession_mapper/core/worker_pool.h"
 
 namespace multisession_mapper {
@@ -384,6 +385,47 @@ TEST(VoxelHashMapTest, PlaneNormalAtNeedsMoreThanOneRingLine) {
   ASSERT_TRUE(map.PlaneNormalAt(Eigen::Vector3d(20.2, 0.0, -1.8), &n));
   EXPECT_GT(std::abs(n.z()), 0.99);
   EXPECT_FALSE(map.PlaneNormalAt(Eigen::Vector3d(0.0, 0.0, -1.8), &n));  // nothing there
+}
+
+// PlaneNormalAt reads the 27 voxels around the point from the search's neighbour cache when
+// a search filled it, from the table otherwise, and skips voxels whose box lies beyond the
+// radius: the same normal either way, bit for bit, and that of every point within the radius.
+TEST(VoxelHashMapTest, PlaneNormalAtIsTheSameWithTheNeighbourCache) {
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.SetNormalsEnabled(false);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-6.0, 6.0);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  PointVector points;  // ground with a slight slope and a wall, 2 cm of noise
+  for (int i = 0; i < 3000; ++i) {
+    const double x = u(rng), y = u(rng);
+    points.emplace_back(x, y, -1.8 + 0.05 * x + noise(rng));
+    if (i % 3 == 0) points.emplace_back(4.2 + noise(rng), y, -1.8 + 0.4 * (u(rng) + 6.0));
+  }
+  map.AddPoints(points);
+  const PointVector kept = map.Points();  // (at most 20 per voxel, 0.2 m apart)
+  const double radius_sq = std::pow(map.config().normal_radius_m, 2);
+  int planar = 0;
+  for (int q = 0; q < 200; ++q) {
+    const Eigen::Vector3d p(u(rng) * 0.9, u(rng) * 0.9, -1.8 + 0.05 * u(rng));
+    Eigen::Vector3d from_table, from_cache, brute;
+    const bool table_ok = map.PlaneNormalAt(p, &from_table);
+    TargetMatch match;
+    map.FindMatch(p, 1.0, &match);  // fills the neighbour cache around p
+    const bool cache_ok = map.PlaneNormalAt(p, &from_cache);
+    CovarianceAccumulator acc;
+    for (const Eigen::Vector3d& x : kept) {
+      if ((x - p).squaredNorm() <= radius_sq) acc.Add(x - p);
+    }
+    const bool brute_ok = acc.Normal(map.config().plane, &brute);
+    ASSERT_EQ(table_ok, cache_ok) << "query " << p.transpose();
+    ASSERT_EQ(table_ok, brute_ok) << "query " << p.transpose();
+    if (!table_ok) continue;
+    ++planar;
+    EXPECT_EQ(from_table, from_cache);
+    EXPECT_LT(std::min((from_table - brute).norm(), (from_table + brute).norm()), 1e-9);
+  }
+  EXPECT_GT(planar, 100);
 }
 
 TEST(VoxelHashMapTest, ValidateNamesTheBadField) {

@@ -132,6 +132,8 @@ def markdown(report):
                        _fmt(t['odometry_ms_median'], '%.2f')],
                       ['of it ICP registration [ms/scan, median]',
                        _fmt(t.get('odometry_registration_ms_median'), '%.2f')],
+                      ['of it map-ground refinement [ms/scan, median]',
+                       _fmt(t.get('odometry_map_ground_ms_median'), '%.2f')],
                       ['ICP iterations per scan [median]',
                        _fmt(t.get('odometry_icp_iterations_median'), '%.0f')],
                       ['descriptor [ms/scan]', _fmt(t['descriptor_ms_median'], '%.3f')],

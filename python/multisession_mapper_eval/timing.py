@@ -36,6 +36,8 @@ def session_figures(record):
         'odometry_ms_p95': _get(record, 'per_scan_ms', 'deskew_odometry', 'p95'),
         'odometry_registration_ms_median': _get(record, 'odometry_stages_ms', 'registration',
                                                 'median'),
+        'odometry_map_ground_ms_median': _get(record, 'odometry_stages_ms', 'map_ground',
+                                              'median'),
         'odometry_icp_iterations_median': _get(record, 'odometry_icp_per_scan', 'iterations',
                                                'median'),
         'descriptor_ms_median': _get(record, 'per_scan_ms', 'descriptor', 'median'),
@@ -64,6 +66,7 @@ def combine(per_session):
            'merge_s_per_session': [s['merge_s'] for s in per_session],
            'peak_rss_mb': max(rss) if rss else None}
     for key in ('odometry_ms_median', 'odometry_registration_ms_median',
+                'odometry_map_ground_ms_median',
                 'odometry_icp_iterations_median', 'descriptor_ms_median', 'query_ms_median',
                 'submap_building_ms_median', 'intra_loop_s_median',
                 'global_registration_s_median', 'dynamic_detection_s_per_pair_median'):

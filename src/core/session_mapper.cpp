@@ -248,6 +248,7 @@ struct SessionMapper::State {
     timings.odometry_deskew_ms.push_back(result.timing.deskew_ms);
     timings.odometry_downsample_ms.push_back(result.timing.downsample_ms);
     timings.odometry_registration_ms.push_back(result.timing.registration_ms);
+    timings.odometry_map_ground_ms.push_back(result.timing.map_ground_ms);
     timings.odometry_map_update_ms.push_back(result.timing.map_update_ms);
     timings.odometry_registrations.push_back(result.registrations);
     timings.odometry_icp_iterations.push_back(result.icp_iterations);

@@ -51,6 +51,7 @@ std::string TimingYaml(const SessionTimings& timings, const SessionRunInfo& run)
   Emit(&out, "deskew", timings.odometry_deskew_ms);
   Emit(&out, "downsample_normals", timings.odometry_downsample_ms);
   Emit(&out, "registration", timings.odometry_registration_ms);
+  Emit(&out, "map_ground", timings.odometry_map_ground_ms);
   Emit(&out, "map_update", timings.odometry_map_update_ms);
   out << YAML::EndMap;
   out << YAML::Key << "odometry_icp_per_scan" << YAML::Value << YAML::BeginMap;

@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/voxel_hash_map.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -24,6 +25,18 @@ constexpr Offset kNeighbourOrder[kNeighbourhood] = {
     {1, 0, -1}, {1, 0, 1}, {0, -1, -1}, {0, -1, 1}, {0, 1, -1}, {0, 1, 1},
     {-1, -1, -1}, {-1, -1, 1}, {-1, 1, -1}, {-1, 1, 1},                           // corners
     {1, -1, -1}, {1, -1, 1}, {1, 1, -1}, {1, 1, 1}};
+
+// kNeighbourOrder's index of the offset (dx, dy, dz) that a loop over dx, then dy, then dz
+// (each -1..1) visits at position 9 (dx + 1) + 3 (dy + 1) + (dz + 1).
+constexpr std::array<int, kNeighbourhood> LoopToNeighbour() {
+  std::array<int, kNeighbourhood> out{};
+  for (int k = 0; k < kNeighbourhood; ++k) {
+    const Offset& o = kNeighbourOrder[k];
+    out[9 * (o.dx + 1) + 3 * (o.dy + 1) + (o.dz + 1)] = k;
+  }
+  return out;
+}
+constexpr std::array<int, kNeighbourhood> kLoopToNeighbour = LoopToNeighbour();
 
 // One expression for the search and the recall of a match, so both give the same bits.
 inline double SquaredDistance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -426,14 +439,26 @@ VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
                                                       Eigen::Vector3d* normal) const {
   const double radius_sq = config_.normal_radius_m * config_.normal_radius_m;
   const int reach = static_cast<int>(std::ceil(config_.normal_radius_m * inv_voxel_size_));
+  // Within one voxel (the defaults) the neighbourhood's ids come from the search's cache when
+  // it holds them (read only: no look-up grows it here), otherwise from the table.
+  const std::uint32_t cached =
+      reach == 1 ? neighbour_cache_.Find(index) : VoxelIndexTable::kEmpty;
   CovarianceAccumulator acc;
+  int loop_position = 0;  // (dx, dy, dz) in loop order: kLoopToNeighbour's index
   for (int dx = -reach; dx <= reach; ++dx) {
     for (int dy = -reach; dy <= reach; ++dy) {
-      for (int dz = -reach; dz <= reach; ++dz) {
-        const int id = Find(index + VoxelIndex(dx, dy, dz));
+      for (int dz = -reach; dz <= reach; ++dz, ++loop_position) {
+        const int id = cached != VoxelIndexTable::kEmpty
+                           ? neighbour_ids_[cached + kLoopToNeighbour[loop_position]]
+                           : Find(index + VoxelIndex(dx, dy, dz));
         if (id < 0) continue;
+        // A voxel whose points' box lies beyond the radius adds nothing: skipped unread (the
+        // sums, and so the normal, are bit for bit those of reading every voxel).
+        const SearchBox& box = boxes_[id];
+        const Eigen::Vector3d gap = (box.low - p).cwiseMax(p - box.high).cwiseMax(0.0);
+        if (gap.squaredNorm() > radius_sq) continue;
         const Eigen::Vector3d* points = PointsOf(static_cast<std::size_t>(id));
-        for (std::size_t i = 0; i < boxes_[id].count; ++i) {
+        for (std::size_t i = 0; i < box.count; ++i) {
           const Eigen::Vector3d& q = points[i];
           if ((q - p).squaredNorm() <= radius_sq) acc.Add(q - p);  // centred: better conditioned
         }

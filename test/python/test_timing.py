@@ -30,12 +30,14 @@ def test_optional_growth_record():
 
 
 def test_odometry_stage_and_icp_work():
-    records = [{'odometry_stages_ms': {'registration': {'median': 12.0}},
+    records = [{'odometry_stages_ms': {'registration': {'median': 12.0},
+                                       'map_ground': {'median': 1.0}},
                 'odometry_icp_per_scan': {'iterations': {'median': 9}}},
                {'odometry_stages_ms': {'registration': {'median': 16.0}},
                 'odometry_icp_per_scan': {'iterations': {'median': 11}}},
                {}]
     t = timing.combine([timing.session_figures(r) for r in records])
     assert t['odometry_registration_ms_median'] == pytest.approx(14.0)
+    assert t['odometry_map_ground_ms_median'] == pytest.approx(1.0)  # the one record with it
     assert t['odometry_icp_iterations_median'] == pytest.approx(10.0)
     assert timing.session_figures({})['odometry_icp_iterations_median'] is None

@@ -75,6 +75,7 @@ struct SessionTimings {
   std::vector<double> odometry_deskew_ms;
   std::vector<double> odometry_downsample_ms;  ///< downsampling and the scan's normals
   std::vector<double> odometry_registration_ms;
+  std::vector<double> odometry_map_ground_ms;
   std::vector<double> odometry_map_update_ms;
   /// Per scan, the odometry's ICP work: runs, summed iterations, summed correspondence
   /// searches (OdometryResult::registrations and its neighbours).
