@@ -349,6 +349,76 @@ TEST_F(RealPairTest, ForwardAndBackwardAlignmentsAreConsistent) {
 }
 
 
+// Counts the queries it is asked, and answers as the wrapped target.
+class CountingTarget : public RegistrationTarget {
+ public:
+  explicit CountingTarget(const RegistrationTarget& target) : target_(target) {}
+  bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
+                 TargetMatch* match) const override {
+    ++queries;
+    return target_.FindMatch(query, max_distance_m, match);
+  }
+  void FindMatches(const PointVector& queries_in, double max_distance_m, bool warm_start,
+                   WorkerPool* pool, std::vector<std::uint8_t>* found,
+                   std::vector<TargetMatch>* matches) const override {
+    queries += queries_in.size();
+    target_.FindMatches(queries_in, max_distance_m, warm_start, pool, found, matches);
+  }
+  bool empty() const override { return target_.empty(); }
+  mutable std::size_t queries = 0;
+
+ private:
+  const RegistrationTarget& target_;
+};
+
+// With the source's own normals and no point-to-point fallback, a point without a normal
+// never pairs: it is not searched, and the registration is bit for bit that of the points
+// with normals alone (same pairs in the same order), its mean weight over all the points.
+TEST(IcpRegistrationTest, PointsWithoutNormalsAreNotSearched) {
+  const SyntheticPair pair = MakePair();
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.AddPoints(VoxelDownsample(pair.target, 0.1));
+  map.SetNormalsEnabled(false);  // as the odometry: the normals are the source's
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  const PointVector all = VoxelDownsample(pair.source, 0.5);
+  PointVector normals, with_normal, their_normals;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    // Every third point without a normal; the others with some unit normal (the planes need
+    // not be right for this comparison).
+    const Eigen::Vector3d n = Eigen::Vector3d(u(rng), u(rng), 1.0).normalized();
+    normals.push_back(i % 3 == 0 ? Eigen::Vector3d::Zero() : n);
+    if (i % 3 != 0) {
+      with_normal.push_back(all[i]);
+      their_normals.push_back(n);
+    }
+  }
+  const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.2, 0.1, 0.0, 0.0, 0.0, 1.0 * kDeg);
+  CountingTarget counted_all(map), counted_subset(map);
+  const StatusOr<IcpResult> a = icp.Register(all, normals, counted_all, guess, 1.0, 0.2);
+  const StatusOr<IcpResult> b =
+      icp.Register(with_normal, their_normals, counted_subset, guess, 1.0, 0.2);
+  ASSERT_TRUE(a.ok()) << a.status().message();
+  ASSERT_TRUE(b.ok()) << b.status().message();
+  EXPECT_EQ(a.value().pose.matrix(), b.value().pose.matrix());
+  EXPECT_EQ(a.value().iterations, b.value().iterations);
+  EXPECT_EQ(a.value().num_inliers, b.value().num_inliers);
+  EXPECT_DOUBLE_EQ(a.value().mean_weight * static_cast<double>(all.size()),
+                   b.value().mean_weight * static_cast<double>(with_normal.size()));
+  EXPECT_EQ(counted_all.queries, counted_subset.queries);
+  EXPECT_EQ(counted_all.queries,
+            static_cast<std::size_t>(a.value().searches) * with_normal.size());
+  // With the point-to-point fallback every point is searched and may pair.
+  IcpConfig fallback_config;
+  fallback_config.point_to_point_fallback = true;
+  const IcpRegistration fallback = IcpRegistration::Create(fallback_config).value();
+  CountingTarget counted_fallback(map);
+  const StatusOr<IcpResult> c = fallback.Register(all, normals, counted_fallback, guess, 1.0, 0.2);
+  ASSERT_TRUE(c.ok()) << c.status().message();
+  EXPECT_EQ(counted_fallback.queries, static_cast<std::size_t>(c.value().searches) * all.size());
+}
+
 TEST(IcpRegistrationTest, SourceNormalsMustMatchTheSource) {
   const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
   PointVector target_points;

@@ -154,7 +154,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   IcpResult result;
   result.num_source = source.size();
   Pose3 pose = se3::Normalized(initial_guess);
-  // Pairs of the last search: index into `source` and its target match.
+  // Pairs of the last search: index into `searched` and its target match.
   struct Pair {
     std::size_t index;
     TargetMatch match;
@@ -164,6 +164,14 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   PointVector moved_source;          // source points at the pose of a search
   std::vector<std::uint8_t> found;   // per source point: a match within the distance
   std::vector<TargetMatch> matches;  // per source point: its match when found
+  // The points that can pair: with point-to-plane on the source's own normals and no
+  // point-to-point fallback, a point without a normal never enters the least squares, so it
+  // is not searched either (the same pairs in the same order, so the same poses).
+  std::vector<std::size_t> searched;
+  const bool normals_only = source_normals != nullptr && !config_.point_to_point_fallback;
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    if (!normals_only || !(*source_normals)[i].isZero(0.0)) searched.push_back(i);
+  }
   Pose3 searched_pose = pose;
   bool must_search = true;
   const bool every_iteration =
@@ -176,14 +184,16 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
                         se3::TranslationNorm(moved) > config_.reassociate_translation_m ||
                         se3::RotationAngleRad(moved) > config_.reassociate_rotation_rad;
     if (search) {
-      moved_source.resize(source.size());
-      for (std::size_t i = 0; i < source.size(); ++i) moved_source[i] = pose * source[i];
+      moved_source.resize(searched.size());
+      for (std::size_t k = 0; k < searched.size(); ++k) {
+        moved_source[k] = pose * source[searched[k]];
+      }
       // From the second search on, the last search's matches bound this one (same pairs).
       target.FindMatches(moved_source, max_correspondence_distance_m, result.searches > 0,
                          pool_.get(), &found, &matches);
       pairs_found.clear();
-      for (std::size_t i = 0; i < source.size(); ++i) {
-        if (found[i] != 0) pairs_found.push_back({i, matches[i]});
+      for (std::size_t k = 0; k < searched.size(); ++k) {
+        if (found[k] != 0) pairs_found.push_back({k, matches[k]});
       }
       searched_pose = pose;
       must_search = false;
@@ -202,13 +212,14 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
     for (Pair& pair : pairs_found) {
       TargetMatch& m = pair.match;
       // On a search iteration the pose is the searched one: its points are already moved.
-      const Eigen::Vector3d p = search ? moved_source[pair.index] : pose * source[pair.index];
+      const Eigen::Vector3d p =
+          search ? moved_source[pair.index] : pose * source[searched[pair.index]];
       const Eigen::Vector3d diff = p - m.point;
       sum_dist_sq += search ? m.distance_sq : diff.squaredNorm();
       if (source_normals != nullptr) {
         // The plane is the source point's own (ring-based) surface normal: target normals
         // of single-ring neighbourhoods are sampling artefacts (see the header).
-        const Eigen::Vector3d& n_source = (*source_normals)[pair.index];
+        const Eigen::Vector3d& n_source = (*source_normals)[searched[pair.index]];
         m.has_normal = !n_source.isZero(0.0);
         if (m.has_normal) m.normal = pose.linear() * n_source;
       }

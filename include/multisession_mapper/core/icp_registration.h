@@ -95,7 +95,10 @@ struct IcpResult {
   int searches = 0;                ///< correspondence searches (<= iterations)
   bool converged = false;          ///< last update under the convergence thresholds
   std::size_t num_source = 0;      ///< source points given
-  std::size_t num_inliers = 0;     ///< source points with a target point within max distance
+  /// Source points with a target point within max distance; with source normals and no
+  /// point_to_point_fallback only points with a normal are searched (the others cannot pair),
+  /// so only they count.
+  std::size_t num_inliers = 0;
   double fitness = 0.0;            ///< num_inliers / num_source, in [0, 1]
   double rmse_m = 0.0;             ///< RMS point-to-point distance of the inliers [m]
   /// Mean robust-kernel weight over all source points at the last iteration, in [0, 1]: the
