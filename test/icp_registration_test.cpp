@@ -379,7 +379,6 @@ TEST(IcpRegistrationTest, PointsWithoutNormalsAreNotSearched) {
   VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
   map.AddPoints(VoxelDownsample(pair.target, 0.1));
   map.SetNormalsEnabled(false);  // as the odometry: the normals are the source's
-  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
   const PointVector all = VoxelDownsample(pair.source, 0.5);
   PointVector normals, with_normal, their_normals;
   std::mt19937 rng(4);
@@ -395,20 +394,29 @@ TEST(IcpRegistrationTest, PointsWithoutNormalsAreNotSearched) {
     }
   }
   const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.2, 0.1, 0.0, 0.0, 0.0, 1.0 * kDeg);
-  CountingTarget counted_all(map), counted_subset(map);
-  const StatusOr<IcpResult> a = icp.Register(all, normals, counted_all, guess, 1.0, 0.2);
-  const StatusOr<IcpResult> b =
-      icp.Register(with_normal, their_normals, counted_subset, guess, 1.0, 0.2);
-  ASSERT_TRUE(a.ok()) << a.status().message();
-  ASSERT_TRUE(b.ok()) << b.status().message();
-  EXPECT_EQ(a.value().pose.matrix(), b.value().pose.matrix());
-  EXPECT_EQ(a.value().iterations, b.value().iterations);
-  EXPECT_EQ(a.value().num_inliers, b.value().num_inliers);
-  EXPECT_DOUBLE_EQ(a.value().mean_weight * static_cast<double>(all.size()),
-                   b.value().mean_weight * static_cast<double>(with_normal.size()));
-  EXPECT_EQ(counted_all.queries, counted_subset.queries);
-  EXPECT_EQ(counted_all.queries,
-            static_cast<std::size_t>(a.value().searches) * with_normal.size());
+  IcpConfig reassociating;  // searches again only after a step: iterations on old pairs too
+  reassociating.reassociate_translation_m = 0.02;
+  reassociating.reassociate_rotation_rad = 0.002;
+  for (const IcpConfig& config : {IcpConfig(), reassociating}) {
+    const IcpRegistration icp = IcpRegistration::Create(config).value();
+    CountingTarget counted_all(map), counted_subset(map);
+    const StatusOr<IcpResult> a = icp.Register(all, normals, counted_all, guess, 1.0, 0.2);
+    const StatusOr<IcpResult> b =
+        icp.Register(with_normal, their_normals, counted_subset, guess, 1.0, 0.2);
+    ASSERT_TRUE(a.ok()) << a.status().message();
+    ASSERT_TRUE(b.ok()) << b.status().message();
+    EXPECT_EQ(a.value().pose.matrix(), b.value().pose.matrix());
+    EXPECT_EQ(a.value().iterations, b.value().iterations);
+    EXPECT_EQ(a.value().num_inliers, b.value().num_inliers);
+    EXPECT_DOUBLE_EQ(a.value().mean_weight * static_cast<double>(all.size()),
+                     b.value().mean_weight * static_cast<double>(with_normal.size()));
+    EXPECT_EQ(counted_all.queries, counted_subset.queries);
+    EXPECT_EQ(counted_all.queries,
+              static_cast<std::size_t>(a.value().searches) * with_normal.size());
+    if (config.reassociate_translation_m > 0.0) {
+      EXPECT_LT(a.value().searches, a.value().iterations);  // the variant did what it is for
+    }
+  }
   // With the point-to-point fallback every point is searched and may pair.
   IcpConfig fallback_config;
   fallback_config.point_to_point_fallback = true;

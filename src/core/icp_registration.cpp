@@ -161,9 +161,9 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   };
   std::vector<Pair> pairs_found;
   pairs_found.reserve(source.size());
-  PointVector moved_source;          // source points at the pose of a search
-  std::vector<std::uint8_t> found;   // per source point: a match within the distance
-  std::vector<TargetMatch> matches;  // per source point: its match when found
+  PointVector moved_source;          // the searched points at the pose of a search
+  std::vector<std::uint8_t> found;   // per searched point (k of `searched`): a match in reach
+  std::vector<TargetMatch> matches;  // per searched point: its match when found
   // The points that can pair: with point-to-plane on the source's own normals and no
   // point-to-point fallback, a point without a normal never enters the least squares, so it
   // is not searched either (the same pairs in the same order, so the same poses).

@@ -37,6 +37,16 @@ constexpr std::array<int, kNeighbourhood> LoopToNeighbour() {
   return out;
 }
 constexpr std::array<int, kNeighbourhood> kLoopToNeighbour = LoopToNeighbour();
+// Each offset once: the table is a permutation (a repeated offset would leave an entry 0).
+constexpr bool IsPermutation(const std::array<int, kNeighbourhood>& table) {
+  for (int a = 0; a < kNeighbourhood; ++a) {
+    for (int b = a + 1; b < kNeighbourhood; ++b) {
+      if (table[a] == table[b]) return false;
+    }
+  }
+  return true;
+}
+static_assert(IsPermutation(kLoopToNeighbour), "kNeighbourOrder must list 27 distinct offsets");
 
 // One expression for the search and the recall of a match, so both give the same bits.
 inline double SquaredDistance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {

@@ -97,7 +97,7 @@ struct IcpResult {
   std::size_t num_source = 0;      ///< source points given
   /// Source points with a target point within max distance; with source normals and no
   /// point_to_point_fallback only points with a normal are searched (the others cannot pair),
-  /// so only they count.
+  /// so only they count, here and in fitness and rmse_m.
   std::size_t num_inliers = 0;
   double fitness = 0.0;            ///< num_inliers / num_source, in [0, 1]
   double rmse_m = 0.0;             ///< RMS point-to-point distance of the inliers [m]

@@ -255,7 +255,7 @@ struct OdometryTiming {
   double deskew_ms = 0.0;
   double downsample_ms = 0.0;
   double registration_ms = 0.0;  ///< every registration but the map-ground refinement
-  double map_ground_ms = 0.0;     ///< the map-ground refinement (map normals and its ICP run)
+  double map_ground_ms = 0.0;    ///< the map-ground refinement (map normals and its ICP run)
   double map_update_ms = 0.0;
   double total_ms = 0.0;
 };

@@ -82,6 +82,7 @@ class VoxelHashMap : public RegistrationTarget {
   /// The normal of the map's surface at `p` (map frame): the covariance of the map points
   /// within normal_radius_m of p, with the planarity test of `config().plane` (a single ring
   /// line is no plane). False where it fails. Not cached; independent of SetNormalsEnabled.
+  /// Reads the search's neighbour cache: not concurrently with FindMatch / FindMatches.
   bool PlaneNormalAt(const Eigen::Vector3d& p, Eigen::Vector3d* normal) const;
   bool empty() const override { return voxels_.empty(); }
   /// FindMatches answers given from a query's memory without a search since the map was
