@@ -305,7 +305,8 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
   }
 
   if (result.registered && continuous && dt > 0.0 && config_.turn_hypothesis_step_rad_s > 0.0 &&
-      TurnHypothesesTriggered(result.icp.mean_weight, velocity(5), median_weight)) {
+      (TurnHypothesesTriggered(result.icp.mean_weight, velocity(5), median_weight) ||
+       (config_.turn_hypothesis_on_release && result.motion_prior_released))) {
     // Yaw-rate hypotheses, each de-skewed with its own rate: a turn that starts or ends within
     // one scan leaves the prediction (and its de-skew) a whole step off.
     result.turn_hypotheses_tried = true;

@@ -51,6 +51,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"odometry", "turn_hypothesis_trigger", &s.odometry.turn_hypothesis_trigger},
       {"odometry", "turn_hypothesis_window_scans", &s.odometry.turn_hypothesis_window_scans},
       {"odometry", "turn_hypothesis_in_turns", &s.odometry.turn_hypothesis_in_turns},
+      {"odometry", "turn_hypothesis_on_release", &s.odometry.turn_hypothesis_on_release},
       {"odometry", "turn_hypothesis_levels", &s.odometry.turn_hypothesis_levels},
       {"odometry", "icp_max_iterations", &s.odometry.icp.max_iterations},
       {"odometry", "icp_convergence_translation_m", &s.odometry.icp.convergence_translation_m},
