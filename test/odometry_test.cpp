@@ -79,6 +79,13 @@ test::VehicleTrajectory GentleTurns() {
                                  1.0, 0.25);
 }
 
+// 1.8 m/s with yaw rates that step 0 <-> +-0.4 rad/s within one scan, as the campus simulator
+// starts and ends its turns (no limit on the yaw acceleration).
+test::VehicleTrajectory YawRateSteps() {
+  return test::VehicleTrajectory(1.8, {{2.0, 0.0}, {2.5, 0.4}, {2.0, 0.0}, {2.5, -0.4}, {2.0, 0.0}},
+                                 1e9, 0.25);
+}
+
 TEST(OdometryTest, TracksFastVehicleInGentleTurns) {
   const SequenceErrors e = RunSequence(GentleTurns(), true);
   std::cout << "gentle turns: max error " << e.max_translation_m << " m, "
@@ -136,8 +143,7 @@ TEST(OdometryTest, DefaultConvergenceSavesIterationsNotAccuracy) {
 // Turns whose yaw rate steps from 0 to 0.4 rad/s and back within one scan (as the campus
 // simulator drives): the prediction and its de-skew are a whole step (2.3 deg) off there.
 TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
-  const test::VehicleTrajectory steps(1.8, {{2.0, 0.0}, {2.5, 0.4}, {2.0, 0.0}, {2.5, -0.4}, {2.0, 0.0}},
-                                      1e9, 0.25);
+  const test::VehicleTrajectory steps = YawRateSteps();
   // Measured with the ICP source voxel of their session (26), 1.5 m. With the 0.75 m default
   // of session 31 the trigger below rarely fires on this sequence (0.088 m / 0.48 deg
   // triggered against 0.087 m / 0.59 deg without; every scan 0.052 m / 0.26 deg).
@@ -234,8 +240,7 @@ TEST(OdometryTest, TurnHypothesesFollowYawRateSteps) {
 // whose motion prior was released (a turn's first scan fits poorly with the prior; the fit
 // without it need not fall below the weight trigger).
 TEST(OdometryTest, TurnHypothesesOnReleaseFollowYawRateSteps) {
-  const test::VehicleTrajectory steps(1.8, {{2.0, 0.0}, {2.5, 0.4}, {2.0, 0.0}, {2.5, -0.4}, {2.0, 0.0}},
-                                      1e9, 0.25);
+  const test::VehicleTrajectory steps = YawRateSteps();
   OdometryConfig on;
   on.turn_hypothesis_window_scans = 10;  // the first step comes after 20 scans
   ASSERT_TRUE(on.turn_hypothesis_on_release);
@@ -246,10 +251,9 @@ TEST(OdometryTest, TurnHypothesesOnReleaseFollowYawRateSteps) {
   std::cout << "yaw-rate steps, defaults: hypotheses on release " << with.max_translation_m
             << " m, " << with.max_rotation_rad / kDeg << " deg (tried "
             << with.turn_hypotheses_tried << ", won " << with.turn_hypotheses_won << "); without "
-            << without.max_translation_m
-            << " m, " << without.max_rotation_rad / kDeg << " deg (tried "
-            << without.turn_hypotheses_tried << ", won " << without.turn_hypotheses_won << ")"
-            << std::endl;
+            << without.max_translation_m << " m, " << without.max_rotation_rad / kDeg
+            << " deg (tried " << without.turn_hypotheses_tried << ", won "
+            << without.turn_hypotheses_won << ")" << std::endl;
   // Measured 0.040 m / 0.30 deg (tried 9, won 8) against 0.074 m / 0.55 deg (tried 6, won 6).
   EXPECT_GT(with.turn_hypotheses_tried, without.turn_hypotheses_tried);
   EXPECT_LT(with.max_rotation_rad, 0.8 * without.max_rotation_rad);

@@ -53,6 +53,12 @@ inline double SquaredDistance(const Eigen::Vector3d& a, const Eigen::Vector3d& b
   return (a - b).squaredNorm();
 }
 
+// Squared distance from `p` to the box [low, high] (0 inside): no point of the box is closer.
+inline double SquaredDistanceToBox(const Eigen::Vector3d& low, const Eigen::Vector3d& high,
+                                   const Eigen::Vector3d& p) {
+  return (low - p).cwiseMax(p - high).cwiseMax(0.0).squaredNorm();
+}
+
 }  // namespace
 
 Status VoxelHashMapConfig::Validate() const {
@@ -398,8 +404,7 @@ bool VoxelHashMap::MatchAround(const Eigen::Vector3d& query, const VoxelIndex& c
     }
     // Same test against the box of the voxel's points, tighter (surfaces are thin).
     const SearchBox& box = boxes_[id];
-    const Eigen::Vector3d gap = (box.low - query).cwiseMax(query - box.high).cwiseMax(0.0);
-    const double gap_sq = gap.squaredNorm();
+    const double gap_sq = SquaredDistanceToBox(box.low, box.high, query);
     if (gap_sq >= best_sq) {
       clear = std::min(clear, gap_sq);
       continue;
@@ -465,8 +470,7 @@ VoxelHashMap::NormalState VoxelHashMap::ComputeNormal(const Eigen::Vector3d& p,
         // A voxel whose points' box lies beyond the radius adds nothing: skipped unread (the
         // sums, and so the normal, are bit for bit those of reading every voxel).
         const SearchBox& box = boxes_[id];
-        const Eigen::Vector3d gap = (box.low - p).cwiseMax(p - box.high).cwiseMax(0.0);
-        if (gap.squaredNorm() > radius_sq) continue;
+        if (SquaredDistanceToBox(box.low, box.high, p) > radius_sq) continue;
         const Eigen::Vector3d* points = PointsOf(static_cast<std::size_t>(id));
         for (std::size_t i = 0; i < box.count; ++i) {
           const Eigen::Vector3d& q = points[i];
