@@ -317,6 +317,61 @@ TEST(SubmapBuilder, FeetAreGrownOverTheGroundMeasuredAfterThePedestrianLeft) {
   EXPECT_EQ(stays_with.first, stays_without.first);
 }
 
+// A car follows the robot along x at its speed (0.4 m per scan), its front 7.75 m behind the
+// sensor. Every place its front face was is later occluded by the car itself, so the checks
+// of later scans never see through its trail; the beams of earlier scans passed through each
+// of those places before the car arrived. Returns the car's points and the static points
+// left in the submaps; car points only from the place its front reached after 10 scans
+// (-3.75 m): before that there are no earlier images to check against.
+std::pair<int, int> FollowerPointsLeft(const SubmapBuilderConfig& config) {
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+  EXPECT_TRUE(builder.ok()) << builder.status().message();
+  std::mt19937 rng(5);
+  Scene scene;
+  scene.car_half_x = 2.25;
+  scene.car_half_y = 0.9;
+  scene.wall_x = 60.0;
+  std::pair<int, int> left(0, 0);
+  for (int i = 0; i < 100; ++i) {
+    const double x = 0.4 * i;
+    scene.car_x = x - 10.0;
+    const Pose3 pose = se3::FromXyzRpy(x, 0.0, 1.8, 0, 0, 0);
+    builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
+  }
+  builder.value().FinishSession();
+  for (const Submap& submap : builder.value().TakeFinished()) {
+    for (const Eigen::Vector3d& p : submap.points) {
+      const Eigen::Vector3d w = submap.T_map_submap * p;
+      // The front face's trail: from the first front (-7.75 m) to the last (31.85 m).
+      const bool on_trail = w.x() > -8.0 && w.x() < 32.0 && std::abs(w.y()) < 1.0 && w.z() > 0.15;
+      if (!on_trail) {
+        ++left.second;
+      } else if (w.x() > -3.5) {
+        ++left.first;
+      }
+    }
+  }
+  return left;
+}
+
+TEST(SubmapBuilder, PastChecksRemoveTheTrailOfACarThatFollows) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.enabled = false;
+  const std::pair<int, int> unfiltered = FollowerPointsLeft(config);
+  config.dynamic_filter.enabled = true;
+  const std::pair<int, int> later_only = FollowerPointsLeft(config);
+  config.dynamic_filter.past_checks = 5;
+  const std::pair<int, int> with_past = FollowerPointsLeft(config);
+  std::cout << "follower trail points: " << unfiltered.first << " unfiltered, "
+            << later_only.first << " with later checks only, " << with_past.first
+            << " with past checks; static " << unfiltered.second << " / " << later_only.second
+            << " / " << with_past.second << std::endl;
+  ASSERT_GT(unfiltered.first, 300) << "the follower must leave a trail without the filter";
+  EXPECT_GT(later_only.first, 0.5 * unfiltered.first) << "later scans cannot see the trail";
+  EXPECT_LT(with_past.first, 0.05 * unfiltered.first);
+  EXPECT_GT(with_past.second, 0.99 * unfiltered.second);
+}
+
 TEST(SubmapBuilder, ParkedCarIsKept) {
   // A car that never moves is static within a session (low-dynamic objects are the job of
   // the multi-session stage).
@@ -511,6 +566,11 @@ TEST(SubmapBuilder, ConfigValidation) {
   EXPECT_FALSE(config.Validate().ok());
   config = SubmapBuilderConfig();
   config.dynamic_filter.near_range_m = 0.0;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SubmapBuilderConfig();
+  config.dynamic_filter.past_checks = -1;
+  EXPECT_FALSE(config.Validate().ok());
+  config.dynamic_filter.past_checks = 65;
   EXPECT_FALSE(config.Validate().ok());
   EXPECT_FALSE(SubmapBuilder::Create(SubmapBuilderConfig(), "").ok());
 }

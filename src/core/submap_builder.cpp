@@ -32,6 +32,9 @@ Status InSessionDynamicFilterConfig::Validate() const {
     return Status::Error("dynamic_filter.min_consecutive_seen_through must be >= 0");
   }
   if (!(tail_m >= 0.0)) return Status::Error("dynamic_filter.tail_m must be >= 0");
+  if (past_checks < 0 || past_checks > 64) {
+    return Status::Error("dynamic_filter.past_checks must be in [0, 64]");
+  }
   if (check_threads < 1 || check_threads > 64) {
     return Status::Error("dynamic_filter.check_threads must be in [1, 64]");
   }
@@ -76,6 +79,9 @@ void SubmapBuilder::set_config(const SubmapBuilderConfig& config) {
     pool_ = std::make_shared<WorkerPool>(threads);
   }
   config_ = config;
+  while (past_images_.size() > static_cast<std::size_t>(config_.dynamic_filter.past_checks)) {
+    past_images_.pop_front();
+  }
 }
 
 void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_jump_m) {
@@ -92,7 +98,7 @@ void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_ju
 void SubmapBuilder::CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odom_sensor) {
   if (pool_ == nullptr) {
     for (OpenSubmap& open : open_) {
-      CheckVisibility(image, T_odom_sensor, &open, 0, open.voxels.size());
+      CheckVisibility(image, T_odom_sensor, stats_.scans, &open, 0, open.voxels.size());
     }
     return;
   }
@@ -109,17 +115,40 @@ void SubmapBuilder::CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odo
     }
   }
   const auto check = [&](std::size_t b) {
-    CheckVisibility(image, T_odom_sensor, blocks[b].open, blocks[b].begin, blocks[b].end);
+    CheckVisibility(image, T_odom_sensor, stats_.scans, blocks[b].open, blocks[b].begin,
+                    blocks[b].end);
   };
   pool_->Run(blocks.size(), check);
 }
 
+void SubmapBuilder::CheckAgainstPast(std::size_t begin, std::size_t end) {
+  if (past_images_.empty() || begin >= end) return;
+  OpenSubmap* current = &open_.back();
+  // Each block of voxels goes through every image, oldest first (the order of the evidence).
+  const auto check = [&](std::size_t first, std::size_t last) {
+    for (const PastImage& past : past_images_) {
+      CheckVisibility(*past.image, past.T_odom_sensor, past.scan, current, first, last);
+    }
+  };
+  constexpr std::size_t kBlock = 2048;
+  const std::size_t blocks = (end - begin + kBlock - 1) / kBlock;
+  if (pool_ == nullptr || blocks == 1) {
+    check(begin, end);
+    return;
+  }
+  pool_->Run(blocks, [&](std::size_t b) {
+    check(begin + b * kBlock, std::min(end, begin + (b + 1) * kBlock));
+  });
+}
+
 void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor,
-                                    OpenSubmap* open, std::size_t begin, std::size_t end) {
+                                    std::uint64_t image_scan, OpenSubmap* open,
+                                    std::size_t begin, std::size_t end) {
   const InSessionDynamicFilterConfig& c = config_.dynamic_filter;
   const Pose3 T_sensor_submap = T_odom_sensor.inverse() * open->submap.T_map_submap;
   const Eigen::Vector3d sensor_in_submap = T_sensor_submap.inverse().translation();
   const double max_range_sq = c.max_check_range_m * c.max_check_range_m;
+  const bool past = image_scan < stats_.scans;
   for (std::size_t i = begin; i < end; ++i) {
     VoxelPoint& voxel = open->voxels[i];
     const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
@@ -129,7 +158,10 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
     const double margin = c.margin_base_m + c.margin_per_m * range;
     switch (image.Check(p_sensor, range, margin)) {
       case Visibility::kSeenThrough:
-        if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) ++voxel.seen_through;
+        if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) {
+          ++voxel.seen_through;
+          if (past) ++voxel.seen_through_past;
+        }
         if (range <= c.near_range_m &&
             voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {
           ++voxel.consecutive_seen_through;
@@ -138,7 +170,8 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
       case Visibility::kConsistent:
         if (voxel.consistent < std::numeric_limits<std::uint16_t>::max()) ++voxel.consistent;
         voxel.consecutive_seen_through = 0;
-        voxel.last_consistent_scan = static_cast<std::uint32_t>(stats_.scans);
+        voxel.last_consistent_scan =
+            std::max(voxel.last_consistent_scan, static_cast<std::uint32_t>(image_scan));
         break;
       default:
         break;
@@ -160,6 +193,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   const bool jump = config_.break_on_jump_m > 0.0 && jump_m > config_.break_on_jump_m;
   if (jump && !open_.empty()) {
     ++stats_.jump_breaks;
+    past_images_.clear();  // their poses do not fit the scans after the jump
     for (OpenSubmap& open : open_) {
       Finalize(&open);
     }
@@ -178,11 +212,14 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   current.submap.length_m += step_m;
 
   // Visibility checks of everything accumulated so far, before this scan's points go in.
-  if (config_.dynamic_filter.enabled &&
-      stats_.scans % static_cast<std::uint64_t>(config_.dynamic_filter.check_every_n_scans) == 0) {
-    const RangeImage image(deskewed_scan, config_.dynamic_filter.range_image);
-    CheckOpenSubmaps(image, T_odom_sensor);
+  const InSessionDynamicFilterConfig& filter = config_.dynamic_filter;
+  std::shared_ptr<const RangeImage> image;
+  if (filter.enabled &&
+      stats_.scans % static_cast<std::uint64_t>(filter.check_every_n_scans) == 0) {
+    image = std::make_shared<const RangeImage>(deskewed_scan, filter.range_image);
+    CheckOpenSubmaps(*image, T_odom_sensor);
   }
+  const std::size_t voxels_before = current.voxels.size();
 
   // Accumulate.
   SubmapScanRecord record;
@@ -239,6 +276,18 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     if (pending_[i].range_sq < voxel.nearest_range_sq) {
       voxel.nearest_range_sq = pending_[i].range_sq;
       voxel.views.nearest_scan = scan_index;
+    }
+  }
+
+  // The voxels this scan created, against the earlier images; then this scan's image joins
+  // them.
+  if (filter.enabled && filter.past_checks > 0) {
+    CheckAgainstPast(voxels_before, current.voxels.size());
+    if (image != nullptr) {
+      past_images_.push_back({image, T_odom_sensor, stats_.scans});
+      while (past_images_.size() > static_cast<std::size_t>(filter.past_checks)) {
+        past_images_.pop_front();
+      }
     }
   }
 
@@ -304,7 +353,10 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     if (mostly_free || left) {
       dynamic[i] = 1;
       const auto index = static_cast<std::uint32_t>(i);
-      if (voxel.nearest_range_sq <= near_sq) frontier.push_back({index, own_limit(index)});
+      const bool left_later = voxel.seen_through > voxel.seen_through_past;
+      if (voxel.nearest_range_sq <= near_sq && left_later) {
+        frontier.push_back({index, own_limit(index)});
+      }
     }
   }
   // Growing (see InSessionDynamicFilterConfig::grow_depth).

@@ -88,6 +88,17 @@ struct InSessionDynamicFilterConfig {
   /// objects removed 94.46 -> 94.73 / 94.57 -> 94.97 / 95.42 -> 95.63 %, static SA 99.57 /
   /// 99.69 / 99.71 % unchanged.
   bool grow_over_measured_ground = true;
+  /// Checks against the past: a voxel that a scan creates is also checked against the range
+  /// images of this many earlier checks (the last ones, every check_every_n_scans-th scan),
+  /// oldest first, as if they had come before it. A beam of an earlier scan that passed where
+  /// the point now is saw free space there before the point arrived: something moved in.
+  /// Later scans cannot see that for an object that follows the robot or drives away from
+  /// it, since it stands in front of its own trail. The evidence counts like that of the
+  /// later checks; a voxel dropped by it alone (no later check saw through it) is not grown
+  /// from: the growing's time limit is when an object left, and an arrival says nothing about
+  /// that (a car that follows the robot would otherwise take the ground in front of it,
+  /// which nothing measures again). 0: off.
+  int past_checks = 0;
   /// Threads of each visibility check, the calling one included (same result with 1: each
   /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
   /// runs partly on the core the odometry leaves idle while it waits for scans. In [1, 64].
@@ -160,6 +171,7 @@ class SubmapBuilder {
     std::uint16_t seen_through = 0;
     std::uint16_t consistent = 0;
     std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
+    std::uint16_t seen_through_past = 0;  ///< of seen_through, by the checks against the past
     std::uint32_t last_consistent_scan = 0;  ///< scan counter of the last consistent check
     float nearest_range_sq = std::numeric_limits<float>::max();  ///< of its measurements [m^2]
     PointViews views;  ///< scans (indices into the submap's scans) that measured it
@@ -171,6 +183,13 @@ class SubmapBuilder {
     std::size_t hash = 0;
     std::uint32_t voxel = 0;  ///< index in the current submap's voxels, once looked up
     float range_sq = 0.0f;    ///< from the sensor [m^2]
+  };
+  /// A range image kept for the checks against the past, with its scan's pose and counter.
+  struct PastImage {
+    std::shared_ptr<const RangeImage> image;
+    Pose3 T_odom_sensor;
+    std::uint64_t scan = 0;
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
   struct OpenSubmap {
     Submap submap;
@@ -189,8 +208,13 @@ class SubmapBuilder {
   /// The visibility check of every open submap's voxels against one scan, on pool_.
   void CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odom_sensor);
   /// The check of voxels [begin, end) of `open` (touches only those voxels).
-  void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor, OpenSubmap* open,
-                       std::size_t begin, std::size_t end);
+  /// `image_scan`: the scan counter of the image's scan (last_consistent_scan).
+  void CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor,
+                       std::uint64_t image_scan, OpenSubmap* open, std::size_t begin,
+                       std::size_t end);
+  /// The current submap's voxels [begin, end), created by the last scan, against the
+  /// earlier range images (InSessionDynamicFilterConfig::past_checks), on pool_.
+  void CheckAgainstPast(std::size_t begin, std::size_t end);
   void Finalize(OpenSubmap* open);
   /// Voxel `v` (at `key`) received no point after scan `since_scan`, the voxel right below it
   /// did and is not `dynamic`, and nothing lies below that one
@@ -204,6 +228,8 @@ class SubmapBuilder {
   std::deque<OpenSubmap> open_;  ///< oldest first; the last one receives points
   std::vector<Submap, Eigen::aligned_allocator<Submap>> finished_;
   std::vector<PendingPoint> pending_;  ///< AddScan's buffer, kept to reuse its memory
+  /// The last past_checks range images, oldest first (emptied at a jump of the odometry).
+  std::deque<PastImage, Eigen::aligned_allocator<PastImage>> past_images_;
   std::uint32_t next_id_ = 0;
   bool has_last_pose_ = false;
   Pose3 last_pose_ = Pose3::Identity();
