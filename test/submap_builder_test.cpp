@@ -372,6 +372,57 @@ TEST(SubmapBuilder, PastChecksRemoveTheTrailOfACarThatFollows) {
   EXPECT_GT(with_past.second, 0.99 * unfiltered.second);
 }
 
+// A pedestrian runs straight at the robot, which stands still, at 0.3 m per scan, from 45 m
+// to 15 m, a wall 10 m behind its start. Each place its front was is later occluded by the
+// runner itself, closer now; a beam of an earlier scan measured the front farther away, but
+// beyond the margin (0.3 m + 2 % of 15-45 m: 0.6-1.2 m) only when that scan is 4 or more scans
+// old at 30 m. Returns its points left in the submaps (more than 0.1 m above the ground).
+int RunnerPointsLeft(const SubmapBuilderConfig& config) {
+  StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+  EXPECT_TRUE(builder.ok()) << builder.status().message();
+  std::mt19937 rng(6);
+  Scene scene;
+  scene.car_half_x = scene.car_half_y = 0.25;
+  scene.car_bottom_z = 0.0;
+  scene.wall_x = 55.0;
+  const Pose3 pose = se3::FromXyzRpy(0.0, 0.0, 1.8, 0, 0, 0);
+  for (int i = 0; i < 100; ++i) {
+    scene.car_x = 45.0 - 0.3 * i;
+    builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
+  }
+  builder.value().FinishSession();
+  int left = 0;
+  for (const Submap& submap : builder.value().TakeFinished()) {
+    for (const Eigen::Vector3d& p : submap.points) {
+      const Eigen::Vector3d w = submap.T_map_submap * p;
+      left += w.x() > 14.0 && w.x() < 45.5 && std::abs(w.y()) < 0.35 && w.z() > 0.1;
+    }
+  }
+  return left;
+}
+
+// Two past images, 2 and 4 scans back, see through little of the runner's trail (a voxel is
+// dropped when seen through twice and more often than measured); with a stride of 4 the same
+// two images are 2-8 and 10-16 scans old and see through more than half of what is left.
+TEST(SubmapBuilder, OlderPastImagesSeeWhatRecentOnesCannot) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.enabled = false;
+  const int unfiltered = RunnerPointsLeft(config);
+  config.dynamic_filter.enabled = true;
+  const int later_only = RunnerPointsLeft(config);
+  config.dynamic_filter.past_checks = 2;
+  const int recent = RunnerPointsLeft(config);
+  config.dynamic_filter.past_check_stride = 4;
+  const int strided = RunnerPointsLeft(config);
+  std::cout << "runner points: " << unfiltered << " unfiltered, " << later_only
+            << " later checks only, 2 past images: " << recent
+            << ", 2 of every 4th check: " << strided << std::endl;
+  ASSERT_GT(unfiltered, 100) << "the runner must leave a trail without the filter";
+  EXPECT_GT(later_only, 0.5 * unfiltered);
+  EXPECT_GT(recent, 0.5 * unfiltered);
+  EXPECT_LT(strided, 0.5 * recent);
+}
+
 TEST(SubmapBuilder, ParkedCarIsKept) {
   // A car that never moves is static within a session (low-dynamic objects are the job of
   // the multi-session stage).
@@ -571,6 +622,9 @@ TEST(SubmapBuilder, ConfigValidation) {
   config.dynamic_filter.past_checks = -1;
   EXPECT_FALSE(config.Validate().ok());
   config.dynamic_filter.past_checks = 65;
+  EXPECT_FALSE(config.Validate().ok());
+  config = SubmapBuilderConfig();
+  config.dynamic_filter.past_check_stride = 0;
   EXPECT_FALSE(config.Validate().ok());
   EXPECT_FALSE(SubmapBuilder::Create(SubmapBuilderConfig(), "").ok());
 }

@@ -85,6 +85,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"in_session_dynamics", "grow_max_scan_gap", &d.grow_max_scan_gap},
       {"in_session_dynamics", "grow_over_measured_ground", &d.grow_over_measured_ground},
       {"in_session_dynamics", "past_checks", &d.past_checks},
+      {"in_session_dynamics", "past_check_stride", &d.past_check_stride},
       {"in_session_dynamics", "no_return_free_range_m", &d.range_image.no_return_free_range_m},
       {"in_session_dynamics", "angular_uncertainty_rad", &d.range_image.angular_uncertainty_rad},
       {"in_session_dynamics", "edge_guard_columns", &d.range_image.edge_guard_columns},

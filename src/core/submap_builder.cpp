@@ -35,6 +35,9 @@ Status InSessionDynamicFilterConfig::Validate() const {
   if (past_checks < 0 || past_checks > 64) {
     return Status::Error("dynamic_filter.past_checks must be in [0, 64]");
   }
+  if (past_check_stride < 1 || past_check_stride > 64) {
+    return Status::Error("dynamic_filter.past_check_stride must be in [1, 64]");
+  }
   if (check_threads < 1 || check_threads > 64) {
     return Status::Error("dynamic_filter.check_threads must be in [1, 64]");
   }
@@ -283,7 +286,8 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   // them.
   if (filter.enabled && filter.past_checks > 0) {
     CheckAgainstPast(voxels_before, current.voxels.size());
-    if (image != nullptr) {
+    if (image != nullptr &&
+        checks_++ % static_cast<std::uint64_t>(filter.past_check_stride) == 0) {
       past_images_.push_back({image, T_odom_sensor, stats_.scans});
       while (past_images_.size() > static_cast<std::size_t>(filter.past_checks)) {
         past_images_.pop_front();

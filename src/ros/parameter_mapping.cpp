@@ -43,6 +43,7 @@ namespace ros_params {
   F(in_session_dynamics_grow_over_measured_ground,                                          \
     s.submaps.dynamic_filter.grow_over_measured_ground)                                     \
   F(in_session_dynamics_past_checks, s.submaps.dynamic_filter.past_checks)                  \
+  F(in_session_dynamics_past_check_stride, s.submaps.dynamic_filter.past_check_stride)      \
   F(in_session_dynamics_no_return_free_range_m,                                             \
     s.submaps.dynamic_filter.range_image.no_return_free_range_m)                            \
   F(in_session_dynamics_angular_uncertainty_rad,                                            \

@@ -99,6 +99,9 @@ struct InSessionDynamicFilterConfig {
   /// that (a car that follows the robot would otherwise take the ground in front of it,
   /// which nothing measures again). 0: off.
   int past_checks = 0;
+  /// The past images are those of every this-many-th check: with 16 and a stride of 4 they
+  /// reach 128 scans back at the cost of 16 images.
+  int past_check_stride = 1;
   /// Threads of each visibility check, the calling one included (same result with 1: each
   /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
   /// runs partly on the core the odometry leaves idle while it waits for scans. In [1, 64].
@@ -230,6 +233,7 @@ class SubmapBuilder {
   std::vector<PendingPoint> pending_;  ///< AddScan's buffer, kept to reuse its memory
   /// The last past_checks range images, oldest first (emptied at a jump of the odometry).
   std::deque<PastImage, Eigen::aligned_allocator<PastImage>> past_images_;
+  std::uint64_t checks_ = 0;  ///< visibility checks so far (past_check_stride)
   std::uint32_t next_id_ = 0;
   bool has_last_pose_ = false;
   Pose3 last_pose_ = Pose3::Identity();
