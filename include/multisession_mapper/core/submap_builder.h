@@ -98,10 +98,10 @@ struct InSessionDynamicFilterConfig {
   /// from: the growing's time limit is when an object left, and an arrival says nothing about
   /// that (a car that follows the robot would otherwise take the ground in front of it,
   /// which nothing measures again). 0: off.
-  int past_checks = 0;
+  int past_checks = 16;
   /// The past images are those of every this-many-th check: with 16 and a stride of 4 they
   /// reach 128 scans back at the cost of 16 images.
-  int past_check_stride = 1;
+  int past_check_stride = 4;
   /// Threads of each visibility check, the calling one included (same result with 1: each
   /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
   /// runs partly on the core the odometry leaves idle while it waits for scans. In [1, 64].
