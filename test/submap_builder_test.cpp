@@ -410,9 +410,10 @@ int RunnerPointsLeft(const SubmapBuilderConfig& config) {
   return left;
 }
 
-// Two past images, 2 and 4 scans back, see through little of the runner's trail (a voxel is
-// dropped when seen through twice and more often than measured); with a stride of 4 the same
-// two images are 2-8 and 10-16 scans old and see through more than half of what is left.
+// Two past images, 1-4 scans back (checks every 2nd scan), see through little of the runner's
+// trail (a voxel is dropped when seen through twice and more often than measured); with a
+// stride of 4 the same two images are 1-8 and 9-16 scans old and see through more than half
+// of what is left.
 TEST(SubmapBuilder, OlderPastImagesSeeWhatRecentOnesCannot) {
   SubmapBuilderConfig config;
   config.dynamic_filter.enabled = false;
@@ -432,6 +433,33 @@ TEST(SubmapBuilder, OlderPastImagesSeeWhatRecentOnesCannot) {
   EXPECT_GT(later_only, 0.5 * unfiltered);
   EXPECT_GT(recent, 0.5 * unfiltered);
   EXPECT_LT(strided, 0.5 * recent);
+}
+
+// A car that arrives while the robot stands there (scan 20 of 100) and stays: every earlier
+// image saw through where it now is, and every later check measures it. The later checks
+// outvote the earlier ones (40 against at most 16), and it is kept, as it is without them.
+TEST(SubmapBuilder, ACarThatArrivesAndStaysIsKept) {
+  SubmapBuilderConfig config;
+  const auto car_points = [&config]() {
+    StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
+    EXPECT_TRUE(builder.ok()) << builder.status().message();
+    std::mt19937 rng(7);
+    Scene scene;
+    const Pose3 pose = se3::FromXyzRpy(0, 0, 1.8, 0, 0, 0);
+    for (int i = 0; i < 100; ++i) {
+      scene.car_present = i >= 20;
+      builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
+    }
+    builder.value().FinishSession();
+    return CarPointsIn(&builder.value());
+  };
+  const int with_past = car_points();
+  config.dynamic_filter.past_checks = 0;
+  const int later_only = car_points();
+  std::cout << "arrived car points: " << with_past << " with past checks, " << later_only
+            << " without" << std::endl;
+  ASSERT_GT(later_only, 100);
+  EXPECT_GE(with_past, later_only);
 }
 
 TEST(SubmapBuilder, ParkedCarIsKept) {

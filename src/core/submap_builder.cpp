@@ -133,6 +133,8 @@ void SubmapBuilder::CheckAgainstPast(std::size_t begin, std::size_t end) {
       CheckVisibility(*past.image, past.T_odom_sensor, past.scan, current, first, last);
     }
   };
+  // One scan creates a few thousand voxels (the check of all open voxels: hundreds of
+  // thousands, in blocks of 8192): smaller blocks, so that both threads get some.
   constexpr std::size_t kBlock = 2048;
   const std::size_t blocks = (end - begin + kBlock - 1) / kBlock;
   if (pool_ == nullptr || blocks == 1) {
@@ -151,7 +153,7 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
   const Pose3 T_sensor_submap = T_odom_sensor.inverse() * open->submap.T_map_submap;
   const Eigen::Vector3d sensor_in_submap = T_sensor_submap.inverse().translation();
   const double max_range_sq = c.max_check_range_m * c.max_check_range_m;
-  const bool past = image_scan < stats_.scans;
+  const bool past = image_scan < stats_.scans;  // an image from before this scan
   for (std::size_t i = begin; i < end; ++i) {
     VoxelPoint& voxel = open->voxels[i];
     const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
@@ -194,9 +196,10 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   // open submaps end before it (their tails are not checked against scans that do not fit
   // them).
   const bool jump = config_.break_on_jump_m > 0.0 && jump_m > config_.break_on_jump_m;
+  if (jump) past_images_.clear();  // their poses do not fit the scans after the jump
+  if (!config_.dynamic_filter.enabled) past_images_.clear();  // old once it is on again
   if (jump && !open_.empty()) {
     ++stats_.jump_breaks;
-    past_images_.clear();  // their poses do not fit the scans after the jump
     for (OpenSubmap& open : open_) {
       Finalize(&open);
     }
@@ -410,6 +413,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
 }
 
 void SubmapBuilder::FinishSession() {
+  past_images_.clear();
   while (!open_.empty()) {
     Finalize(&open_.front());
     open_.pop_front();
