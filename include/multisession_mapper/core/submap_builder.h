@@ -98,10 +98,10 @@ struct InSessionDynamicFilterConfig {
   /// it, since it stands in front of its own trail. The evidence counts like that of the
   /// later checks; an object that arrives while the robot passes and stays is kept only if
   /// later checks measure it more often than the earlier images saw through it. A voxel
-  /// dropped by it alone (no later check saw through it) is not grown
-  /// from: the growing's time limit is when an object left, and an arrival says nothing about
-  /// that (a car that follows the robot would otherwise take the ground in front of it,
-  /// which nothing measures again). 0: off.
+  /// dropped by it alone (no later check saw through it) is not grown from: the growing's
+  /// time limit is when an object left, and an arrival says nothing about that (a car that
+  /// follows the robot would otherwise take the ground in front of it, which nothing
+  /// measures again). 0: off.
   int past_checks = 16;
   /// The past images are those of every this-many-th check: with 16 and a stride of 4 (and
   /// checks every 2nd scan) they reach 128 scans back at the cost of 16 images. A voxel that
