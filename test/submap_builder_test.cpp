@@ -187,10 +187,11 @@ TEST(SubmapBuilder, GrowingRemovesTheLowestPartsOfTheMovingCar) {
   EXPECT_GT(growing.static_points, 0.99 * unfiltered.static_points);
 }
 
-// The robot stands still for 10 s while a car at x = car_x is present for `car_scans` scans
-// and then gone; the wall is 10 m behind the car, so that the beams that hit the car hit
-// the wall once it is gone. Returns the car's points left in the submaps.
-int CarPointsLeft(const SubmapBuilderConfig& config, double car_x, int car_scans, bool moving) {
+// The robot stands still for 10 s while a car at x = car_x is present from scan `first_scan`
+// to scan `car_scans` and then gone; the wall is 10 m behind the car, so that the beams that
+// hit the car hit the wall once it is gone. Returns the car's points left in the submaps.
+int CarPointsLeft(const SubmapBuilderConfig& config, double car_x, int car_scans, bool moving,
+                  int first_scan = 0) {
   StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
   EXPECT_TRUE(builder.ok()) << builder.status().message();
   std::mt19937 rng(3);
@@ -200,7 +201,7 @@ int CarPointsLeft(const SubmapBuilderConfig& config, double car_x, int car_scans
   const Pose3 pose = se3::FromXyzRpy(0, 0, 1.8, 0, 0, 0);
   for (int i = 0; i < 100; ++i) {
     scene.car_y = moving ? -20.0 + 0.4 * i : 0.0;
-    scene.car_present = i < car_scans;
+    scene.car_present = i >= first_scan && i < car_scans;
     builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
   }
   builder.value().FinishSession();
@@ -440,19 +441,7 @@ TEST(SubmapBuilder, OlderPastImagesSeeWhatRecentOnesCannot) {
 // outvote the earlier ones (40 against at most 16), and it is kept, as it is without them.
 TEST(SubmapBuilder, ACarThatArrivesAndStaysIsKept) {
   SubmapBuilderConfig config;
-  const auto car_points = [&config]() {
-    StatusOr<SubmapBuilder> builder = SubmapBuilder::Create(config, "s00");
-    EXPECT_TRUE(builder.ok()) << builder.status().message();
-    std::mt19937 rng(7);
-    Scene scene;
-    const Pose3 pose = se3::FromXyzRpy(0, 0, 1.8, 0, 0, 0);
-    for (int i = 0; i < 100; ++i) {
-      scene.car_present = i >= 20;
-      builder.value().AddScan(Scan(scene, pose, 10.0 + 0.1 * i, &rng), pose);
-    }
-    builder.value().FinishSession();
-    return CarPointsIn(&builder.value());
-  };
+  const auto car_points = [&config]() { return CarPointsLeft(config, 10.0, 100, false, 20); };
   const int with_past = car_points();
   config.dynamic_filter.past_checks = 0;
   const int later_only = car_points();

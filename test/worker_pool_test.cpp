@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstddef>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -91,6 +92,32 @@ TEST(WorkerPoolTest, RunsFromSeveralThreadsTakeTurns) {
   }
   for (std::thread& t : callers) t.join();
   EXPECT_EQ(total.load(), 3L * 100L * (49L * 50L / 2L));
+}
+
+// Blocks tile [begin, end) exactly, on the pool; without a pool, or with one block, the caller
+// runs the whole range in one call.
+TEST(WorkerPoolTest, RunBlocksTilesTheRange) {
+  WorkerPool pool(3);
+  std::vector<std::atomic<int>> hits(1000);
+  std::atomic<int> calls{0};
+  WorkerPool::RunBlocks(&pool, 10, 1000, 64, [&](std::size_t first, std::size_t last) {
+    EXPECT_LE(last - first, 64u);
+    EXPECT_EQ((first - 10) % 64, 0u);
+    for (std::size_t i = first; i < last; ++i) ++hits[i];
+    ++calls;
+  });
+  for (std::size_t i = 0; i < hits.size(); ++i) EXPECT_EQ(hits[i].load(), i >= 10 ? 1 : 0) << i;
+  EXPECT_EQ(calls.load(), 16);  // 990 items in blocks of 64
+  std::vector<std::pair<std::size_t, std::size_t>> ranges;
+  const auto record = [&](std::size_t first, std::size_t last) {
+    ranges.emplace_back(first, last);
+  };
+  WorkerPool::RunBlocks(nullptr, 5, 500, 64, record);
+  WorkerPool::RunBlocks(&pool, 5, 40, 64, record);
+  WorkerPool::RunBlocks(&pool, 7, 7, 64, record);
+  ASSERT_EQ(ranges.size(), 2u);
+  EXPECT_EQ(ranges[0], std::make_pair(std::size_t{5}, std::size_t{500}));
+  EXPECT_EQ(ranges[1], std::make_pair(std::size_t{5}, std::size_t{40}));
 }
 
 }  // namespace

@@ -82,9 +82,7 @@ void SubmapBuilder::set_config(const SubmapBuilderConfig& config) {
     pool_ = std::make_shared<WorkerPool>(threads);
   }
   config_ = config;
-  while (past_images_.size() > static_cast<std::size_t>(config_.dynamic_filter.past_checks)) {
-    past_images_.pop_front();
-  }
+  TrimPastImages();
 }
 
 void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_jump_m) {
@@ -125,25 +123,23 @@ void SubmapBuilder::CheckOpenSubmaps(const RangeImage& image, const Pose3& T_odo
 }
 
 void SubmapBuilder::CheckAgainstPast(std::size_t begin, std::size_t end) {
-  if (past_images_.empty() || begin >= end) return;
+  if (past_images_.empty()) return;
   OpenSubmap* current = &open_.back();
-  // Each block of voxels goes through every image, oldest first (the order of the evidence).
-  const auto check = [&](std::size_t first, std::size_t last) {
+  // One scan creates a few thousand voxels (the check of all open voxels: hundreds of
+  // thousands, in blocks of 8192): smaller blocks, so that both threads get some. Each block
+  // goes through every image, oldest first (the order of the evidence).
+  constexpr std::size_t kBlock = 2048;
+  WorkerPool::RunBlocks(pool_.get(), begin, end, kBlock, [&](std::size_t first, std::size_t last) {
     for (const PastImage& past : past_images_) {
       CheckVisibility(*past.image, past.T_odom_sensor, past.scan, current, first, last);
     }
-  };
-  // One scan creates a few thousand voxels (the check of all open voxels: hundreds of
-  // thousands, in blocks of 8192): smaller blocks, so that both threads get some.
-  constexpr std::size_t kBlock = 2048;
-  const std::size_t blocks = (end - begin + kBlock - 1) / kBlock;
-  if (pool_ == nullptr || blocks == 1) {
-    check(begin, end);
-    return;
-  }
-  pool_->Run(blocks, [&](std::size_t b) {
-    check(begin + b * kBlock, std::min(end, begin + (b + 1) * kBlock));
   });
+}
+
+void SubmapBuilder::TrimPastImages() {
+  while (past_images_.size() > static_cast<std::size_t>(config_.dynamic_filter.past_checks)) {
+    past_images_.pop_front();
+  }
 }
 
 void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom_sensor,
@@ -163,10 +159,8 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
     const double margin = c.margin_base_m + c.margin_per_m * range;
     switch (image.Check(p_sensor, range, margin)) {
       case Visibility::kSeenThrough:
-        if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) {
-          ++voxel.seen_through;
-          if (past) ++voxel.seen_through_past;
-        }
+        if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) ++voxel.seen_through;
+        if (!past) voxel.seen_through_later = true;
         if (range <= c.near_range_m &&
             voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {
           ++voxel.consecutive_seen_through;
@@ -196,8 +190,8 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
   // open submaps end before it (their tails are not checked against scans that do not fit
   // them).
   const bool jump = config_.break_on_jump_m > 0.0 && jump_m > config_.break_on_jump_m;
-  if (jump) past_images_.clear();  // their poses do not fit the scans after the jump
-  if (!config_.dynamic_filter.enabled) past_images_.clear();  // old once it is on again
+  // After a jump their poses do not fit the scans; with the filter off they grow old.
+  if (jump || !config_.dynamic_filter.enabled) past_images_.clear();
   if (jump && !open_.empty()) {
     ++stats_.jump_breaks;
     for (OpenSubmap& open : open_) {
@@ -292,9 +286,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     if (image != nullptr &&
         checks_++ % static_cast<std::uint64_t>(filter.past_check_stride) == 0) {
       past_images_.push_back({image, T_odom_sensor, stats_.scans});
-      while (past_images_.size() > static_cast<std::size_t>(filter.past_checks)) {
-        past_images_.pop_front();
-      }
+      TrimPastImages();
     }
   }
 
@@ -360,8 +352,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     if (mostly_free || left) {
       dynamic[i] = 1;
       const auto index = static_cast<std::uint32_t>(i);
-      const bool left_later = voxel.seen_through > voxel.seen_through_past;
-      if (voxel.nearest_range_sq <= near_sq && left_later) {
+      if (voxel.nearest_range_sq <= near_sq && voxel.seen_through_later) {
         frontier.push_back({index, own_limit(index)});
       }
     }

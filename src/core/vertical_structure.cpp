@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -109,15 +110,11 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
       is_wall[k] = std::abs(normals[k].z()) <= candidate_cos ? 1 : 0;
     }
   };
-  const std::size_t blocks = (thinned.size() + kBlock - 1) / kBlock;
-  if (config.threads > 1 && blocks > 1) {
-    WorkerPool pool(config.threads);  // a thread start per submap: negligible
-    pool.Run(blocks, [&](std::size_t block) {
-      estimate(block * kBlock, std::min(thinned.size(), (block + 1) * kBlock));
-    });
-  } else {
-    estimate(0, thinned.size());
+  std::unique_ptr<WorkerPool> pool;  // a thread start per submap: negligible
+  if (config.threads > 1 && thinned.size() > kBlock) {
+    pool = std::make_unique<WorkerPool>(config.threads);
   }
+  WorkerPool::RunBlocks(pool.get(), 0, thinned.size(), kBlock, estimate);
   PointVector walls;
   for (std::size_t k = 0; k < thinned.size(); ++k) {
     if (is_wall[k] != 0) walls.push_back(normals[k]);

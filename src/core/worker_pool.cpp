@@ -1,5 +1,6 @@
 #include "multisession_mapper/core/worker_pool.h"
 
+#include <algorithm>
 #include <atomic>
 
 namespace multisession_mapper {
@@ -17,6 +18,20 @@ struct WorkerPool::Job {
 
 WorkerPool::WorkerPool(int threads) {
   for (int t = 1; t < threads; ++t) helpers_.emplace_back([this] { HelperLoop(); });
+}
+
+void WorkerPool::RunBlocks(WorkerPool* pool, std::size_t begin, std::size_t end,
+                           std::size_t block,
+                           const std::function<void(std::size_t, std::size_t)>& body) {
+  if (begin >= end) return;
+  const std::size_t blocks = (end - begin + block - 1) / block;
+  if (pool == nullptr || blocks == 1) {
+    body(begin, end);
+    return;
+  }
+  pool->Run(blocks, [&](std::size_t b) {
+    body(begin + b * block, std::min(end, begin + (b + 1) * block));
+  });
 }
 
 WorkerPool::~WorkerPool() {

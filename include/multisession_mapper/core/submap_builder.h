@@ -183,7 +183,7 @@ class SubmapBuilder {
     std::uint16_t seen_through = 0;
     std::uint16_t consistent = 0;
     std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
-    std::uint16_t seen_through_past = 0;  ///< of seen_through, by the checks against the past
+    bool seen_through_later = false;  ///< by a later scan's check (not only the past's)
     std::uint32_t last_consistent_scan = 0;  ///< scan counter of the last consistent check
     float nearest_range_sq = std::numeric_limits<float>::max();  ///< of its measurements [m^2]
     PointViews views;  ///< scans (indices into the submap's scans) that measured it
@@ -227,6 +227,8 @@ class SubmapBuilder {
   /// The current submap's voxels [begin, end), created by this scan, against the earlier
   /// range images (InSessionDynamicFilterConfig::past_checks and past_check_stride), on pool_.
   void CheckAgainstPast(std::size_t begin, std::size_t end);
+  /// Drops the oldest past images beyond past_checks.
+  void TrimPastImages();
   void Finalize(OpenSubmap* open);
   /// Voxel `v` (at `key`) received no point after scan `since_scan`, the voxel right below it
   /// did and is not `dynamic`, and nothing lies below that one

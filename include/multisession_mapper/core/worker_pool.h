@@ -33,6 +33,12 @@ class WorkerPool {
   /// the other.
   void Run(std::size_t n, const std::function<void(std::size_t)>& body);
 
+  /// body(first, last) for the blocks [first, last) of `block` items that [begin, end) splits
+  /// into, on `pool`; on the calling thread alone, in order, when `pool` is null or there is
+  /// one block. The same rules for body as Run's.
+  static void RunBlocks(WorkerPool* pool, std::size_t begin, std::size_t end, std::size_t block,
+                        const std::function<void(std::size_t, std::size_t)>& body);
+
  private:
   struct Job;
   void HelperLoop();
