@@ -249,6 +249,34 @@ TEST(SubmapBuilder, FarChecksDropOnlyByTheirMajority) {
       << "with far checks counted as near the consecutive rule drops it";
 }
 
+// A car 30 m away stands for the first 60 of the 100 scans and leaves. Each of its voxels was
+// measured in 30 checks and seen through in 20: no majority, and with the consecutive rule
+// off nothing else drops it. As a group above the ground, 40 % of its checks saw through it:
+// the seen-through groups drop it, or the part of it that stands high enough: two rings hit
+// it, and the lower one hits it 0.2 m up, below both height limits (0.25 m over the fine
+// ground, 0.5 m over the coarse one), so it stays (half the car's points). The same car
+// standing for 94 scans (3 of 50 checks seen through) stays whole.
+TEST(SubmapBuilder, SeenThroughGroupsDropWhatNoSingleVoxelsMajorityCould) {
+  SubmapBuilderConfig config;
+  config.dynamic_filter.min_consecutive_seen_through = 0;
+  SubmapBuilderConfig unfiltered = config;
+  unfiltered.dynamic_filter.enabled = false;
+  SubmapBuilderConfig no_groups = config;
+  no_groups.dynamic_filter.groups.min_seen_through_ratio = 0.0;
+  const int all = CarPointsLeft(unfiltered, 30.0, 60, false);
+  const int per_voxel = CarPointsLeft(no_groups, 30.0, 60, false);
+  const int grouped = CarPointsLeft(config, 30.0, 60, false);
+  const int stayed = CarPointsLeft(config, 30.0, 94, false);
+  const int stayed_all = CarPointsLeft(unfiltered, 30.0, 94, false);
+  std::cout << "car 30 m away for 60 scans: " << all << " points unfiltered, " << per_voxel
+            << " left by the per-voxel rules, " << grouped << " with the groups; for 94 scans "
+            << stayed << " of " << stayed_all << std::endl;
+  ASSERT_GT(all, 20);
+  EXPECT_GT(per_voxel, 0.8 * all) << "no single voxel's majority";
+  EXPECT_LT(grouped, 0.6 * per_voxel);
+  EXPECT_GT(stayed, 0.9 * stayed_all) << "a car that stayed is kept";
+}
+
 // A pedestrian (0.5 x 0.5 x 1.7 m, standing on the ground) `x_m` ahead for the first
 // `present_scans` scans, then gone, while the robot creeps towards it at 0.2 m/s. The sensor
 // is 1.9 m up, so that the ground lies in the middle of its voxel layer and the lowest

@@ -41,7 +41,7 @@ Status InSessionDynamicFilterConfig::Validate() const {
   if (check_threads < 1 || check_threads > 64) {
     return Status::Error("dynamic_filter.check_threads must be in [1, 64]");
   }
-  return Status::Ok();
+  return groups.Validate();
 }
 
 Status SubmapBuilderConfig::Validate() const {
@@ -387,6 +387,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     }
     frontier.swap(next);
   }
+  if (c.enabled) DropSeenThroughGroups(*open, &dynamic);
   for (std::size_t i = 0; i < open->voxels.size(); ++i) {
     if (dynamic[i]) {
       ++stats_.voxels_dropped_dynamic;
@@ -401,6 +402,32 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   open->voxel_index.Release();
   ++stats_.submaps_finished;
   finished_.push_back(std::move(submap));
+}
+
+void SubmapBuilder::DropSeenThroughGroups(const OpenSubmap& open,
+                                          std::vector<std::uint8_t>* dynamic) {
+  if (config_.dynamic_filter.groups.min_seen_through_ratio <= 0.0) return;
+  std::vector<GroupVoxel> kept;
+  std::vector<std::uint32_t> index;  // kept -> voxel
+  kept.reserve(open.voxels.size());
+  index.reserve(open.voxels.size());
+  for (std::size_t i = 0; i < open.voxels.size(); ++i) {
+    if ((*dynamic)[i]) continue;
+    const VoxelPoint& voxel = open.voxels[i];
+    const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
+    GroupVoxel v;
+    v.key = ToVoxelKey(p_submap, config_.voxel_size_m);
+    v.point_up = open.submap.T_map_submap * p_submap;  // the odometry frame: z up
+    v.seen_through = voxel.seen_through;
+    v.consistent = voxel.consistent;
+    v.nearest_range_m = std::sqrt(voxel.nearest_range_sq);
+    kept.push_back(v);
+    index.push_back(static_cast<std::uint32_t>(i));
+  }
+  for (const std::uint32_t k : SeenThroughGroups(config_.dynamic_filter.groups, kept)) {
+    (*dynamic)[index[k]] = 1;
+    ++stats_.voxels_dropped_groups;
+  }
 }
 
 void SubmapBuilder::FinishSession() {

@@ -44,6 +44,23 @@ namespace ros_params {
     s.submaps.dynamic_filter.grow_over_measured_ground)                                     \
   F(in_session_dynamics_past_checks, s.submaps.dynamic_filter.past_checks)                  \
   F(in_session_dynamics_past_check_stride, s.submaps.dynamic_filter.past_check_stride)      \
+  F(in_session_dynamics_group_min_seen_through_ratio,                                           \
+    s.submaps.dynamic_filter.groups.min_seen_through_ratio)                                 \
+  F(in_session_dynamics_group_min_seen_voxel_fraction,                                      \
+    s.submaps.dynamic_filter.groups.min_seen_voxel_fraction)                                \
+  F(in_session_dynamics_group_min_voxels, s.submaps.dynamic_filter.groups.min_voxels)       \
+  F(in_session_dynamics_group_min_height_m, s.submaps.dynamic_filter.groups.min_height_m)   \
+  F(in_session_dynamics_group_ground_cell_m, s.submaps.dynamic_filter.groups.ground_cell_m) \
+  F(in_session_dynamics_group_coarse_ground_cell_m,                                         \
+    s.submaps.dynamic_filter.groups.coarse_ground_cell_m)                                   \
+  F(in_session_dynamics_group_coarse_min_height_m,                                          \
+    s.submaps.dynamic_filter.groups.coarse_min_height_m)                                    \
+  F(in_session_dynamics_group_min_nearest_range_m,                                          \
+    s.submaps.dynamic_filter.groups.min_nearest_range_m)                                    \
+  F(in_session_dynamics_group_plane_min_height_m,                                           \
+    s.submaps.dynamic_filter.groups.plane_min_height_m)                                     \
+  F(in_session_dynamics_group_plane_fit_max_range_m,                                        \
+    s.submaps.dynamic_filter.groups.plane_fit_max_range_m)                                  \
   F(in_session_dynamics_no_return_free_range_m,                                             \
     s.submaps.dynamic_filter.range_image.no_return_free_range_m)                            \
   F(in_session_dynamics_angular_uncertainty_rad,                                            \

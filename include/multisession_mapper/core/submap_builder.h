@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "multisession_mapper/core/range_image.h"
+#include "multisession_mapper/core/seen_through_groups.h"
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/submap.h"
 #include "multisession_mapper/core/types.h"
@@ -111,6 +112,11 @@ struct InSessionDynamicFilterConfig {
   /// 96.10 / 99.74 %, 16 x 4 96.42 / 99.72 %, 32 x 2 96.75 / 99.73 % (but 9.6-9.9x real
   /// time against 10.3-11.0x with 16 x 4 and 11.2-11.3x off).
   int past_check_stride = 4;
+  /// After the per-voxel rules and the growing, the kept voxels above the ground are judged
+  /// per connected group too (see seen_through_groups.h): a group whose checks saw through it
+  /// often enough is dropped. For objects seen only from afar, whose few checks per voxel
+  /// rarely outvote the consistent ones one voxel at a time.
+  SeenThroughGroupsConfig groups;
   /// Threads of each visibility check, the calling one included (same result with 1: each
   /// voxel's evidence is its own). The check is most of the submap building's CPU; with 2 it
   /// runs partly on the core the odometry leaves idle while it waits for scans. In [1, 64].
@@ -146,8 +152,9 @@ struct SubmapBuilderConfig {
 struct SubmapBuilderStats {
   std::uint64_t scans = 0;
   std::uint64_t submaps_finished = 0;
-  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown ones
+  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown ones and the groups'
   std::uint64_t voxels_dropped_grown = 0;
+  std::uint64_t voxels_dropped_groups = 0;  ///< by InSessionDynamicFilterConfig::groups
   std::uint64_t voxels_kept = 0;
   std::uint64_t jump_breaks = 0;  ///< submaps ended at a jump of the odometry
 };
@@ -230,6 +237,9 @@ class SubmapBuilder {
   /// Drops the oldest past images beyond past_checks.
   void TrimPastImages();
   void Finalize(OpenSubmap* open);
+  /// Marks in `dynamic` the kept voxels of the groups InSessionDynamicFilterConfig::groups
+  /// drops (after the per-voxel rules and the growing).
+  void DropSeenThroughGroups(const OpenSubmap& open, std::vector<std::uint8_t>* dynamic);
   /// Voxel `v` (at `key`) received no point after scan `since_scan`, the voxel right below it
   /// did and is not `dynamic`, and nothing lies below that one
   /// (InSessionDynamicFilterConfig::grow_over_measured_ground).
