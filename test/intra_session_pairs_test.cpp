@@ -1,7 +1,10 @@
 #include "multisession_mapper/core/intra_session_pairs.h"
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -175,6 +178,65 @@ TEST(IntraSessionPairs, NoPairAcrossAJumpOfTheOdometry) {
   EXPECT_EQ(stats.value().pairs_across_jumps, 2u);
   // The leaving car is only in submap 0, so it stays.
   EXPECT_EQ(Count(submaps).leaving, before.leaving);
+}
+
+// The worker detects the pairs while the submaps come (here: as fast as it can), on copies,
+// at the relative poses given to Add; the result is that of detecting them all at the end.
+TEST(IntraSessionPairs, DetectedDuringTheSessionAsAtTheEnd) {
+  const auto session = BuildSession(true);
+  ASSERT_GE(session.size(), 3u);
+  IntraSessionPairsConfig config;
+  config.neighbours = 2;
+  auto at_end = session;
+  StatusOr<IntraSessionPairsStats> end_stats = RemoveDynamicsBetweenSubmaps(config, &at_end);
+  ASSERT_TRUE(end_stats.ok()) << end_stats.status().message();
+  ASSERT_GT(end_stats.value().points_removed, 0u);
+  EXPECT_EQ(end_stats.value().pairs_during_session, 0u);
+
+  StatusOr<std::unique_ptr<IntraSessionPairDetector>> pairs =
+      IntraSessionPairDetector::Create(config);
+  ASSERT_TRUE(pairs.ok()) << pairs.status().message();
+  for (const Submap& submap : session) pairs.value()->Add(submap, submap.T_map_submap);
+  const std::size_t expected = pairs.value()->pairs_known();
+  EXPECT_EQ(expected, end_stats.value().pairs);
+  for (int wait = 0; wait < 1200 && pairs.value()->pairs_detected_during_session() < expected;
+       ++wait) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  auto during = session;
+  StatusOr<IntraSessionPairsStats> stats = pairs.value()->Finish(&during);
+  ASSERT_TRUE(stats.ok()) << stats.status().message();
+  EXPECT_EQ(stats.value().pairs_during_session, expected) << "the worker did not run";
+  EXPECT_EQ(stats.value().points_removed, end_stats.value().points_removed);
+  ASSERT_EQ(during.size(), at_end.size());
+  for (std::size_t k = 0; k < during.size(); ++k) {
+    EXPECT_TRUE(during[k].points == at_end[k].points) << "submap " << k;
+  }
+  EXPECT_FALSE(pairs.value()->Finish(&during).ok()) << "once only";
+}
+
+// The submaps handed to Finish must be those added (the worker detected on copies of them).
+TEST(IntraSessionPairs, FinishRefusesSubmapsThatChangedSinceAdd) {
+  auto session = BuildSession();
+  ASSERT_GE(session.size(), 2u);
+  IntraSessionPairsConfig config;
+  config.during_session = false;
+  StatusOr<std::unique_ptr<IntraSessionPairDetector>> pairs =
+      IntraSessionPairDetector::Create(config);
+  ASSERT_TRUE(pairs.ok());
+  for (const Submap& submap : session) pairs.value()->Add(submap, submap.T_map_submap);
+  session[1].points.pop_back();
+  StatusOr<IntraSessionPairsStats> stats = pairs.value()->Finish(&session);
+  ASSERT_FALSE(stats.ok());
+  EXPECT_NE(stats.status().message().find("submap 1"), std::string::npos)
+      << stats.status().message();
+  session.pop_back();
+  StatusOr<std::unique_ptr<IntraSessionPairDetector>> again =
+      IntraSessionPairDetector::Create(config);
+  ASSERT_TRUE(again.ok());
+  for (std::size_t k = 0; k + 1 < session.size(); ++k) again.value()->Add(session[k], {});
+  session.clear();
+  EXPECT_FALSE(again.value()->Finish(&session).ok()) << "fewer submaps than added";
 }
 
 TEST(IntraSessionPairs, RejectsInvalidConfigs) {

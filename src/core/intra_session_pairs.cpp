@@ -1,6 +1,10 @@
 #include "multisession_mapper/core/intra_session_pairs.h"
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <algorithm>
+#include <chrono>
 #include <string>
 #include <utility>
 
@@ -37,61 +41,220 @@ DynamicDetectionConfig IntraSessionPairsConfig::DetectionConfig() const {
   return c;
 }
 
-StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
-    const IntraSessionPairsConfig& config,
-    std::vector<Submap, Eigen::aligned_allocator<Submap>>* submaps) {
+namespace {
+
+// Best effort: a worker that only takes the CPU time the pipeline's threads leave.
+void LowerThisThreadsPriority() {
+#if defined(__linux__) && defined(SCHED_IDLE)
+  sched_param param{};
+  param.sched_priority = 0;
+  pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
+#endif
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+StatusOr<std::unique_ptr<IntraSessionPairDetector>> IntraSessionPairDetector::Create(
+    const IntraSessionPairsConfig& config) {
   Status valid = config.Validate();
   if (!valid.ok()) return valid;
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(config.DetectionConfig());
   if (!detector.ok()) return detector.status();
-  std::vector<Submap, Eigen::aligned_allocator<Submap>>& maps = *submaps;
-  struct Pair {
-    std::size_t earlier, later;
-  };
-  IntraSessionPairsStats stats;
-  std::vector<Pair> pairs;
-  std::vector<int> uses(maps.size(), 0);
-  for (std::size_t i = 0; i < maps.size(); ++i) {
-    if (maps[i].points.empty() || maps[i].scans.empty()) continue;
-    for (std::size_t j = i + 1; j < maps.size() && j <= i + config.neighbours; ++j) {
-      // Not across a jump of the odometry (Submap::started_at_jump_m): the two sides of a
-      // jump are placed only by a weak link unless a loop corrected it, and a misplaced pair
-      // passes for change.
-      if (maps[j].started_at_jump_m > 0.0) {
-        stats.pairs_across_jumps += std::min(maps.size() - 1, i + config.neighbours) - j + 1;
-        break;
-      }
-      if (maps[j].points.empty() || maps[j].scans.empty()) continue;
-      pairs.push_back({i, j});
-      ++uses[i];
-      ++uses[j];
+  return std::unique_ptr<IntraSessionPairDetector>(
+      new IntraSessionPairDetector(config, std::move(detector.value())));
+}
+
+IntraSessionPairDetector::IntraSessionPairDetector(const IntraSessionPairsConfig& config,
+                                                   DynamicDetector detector)
+    : config_(config), detector_(std::move(detector)) {
+  if (config_.during_session) worker_ = std::thread([this] { RunWorker(); });
+}
+
+IntraSessionPairDetector::~IntraSessionPairDetector() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void IntraSessionPairDetector::Add(const Submap& submap, const Pose3& T_odometry_submap) {
+  const std::size_t k = odometry_poses_.size();
+  odometry_poses_.push_back(T_odometry_submap);
+  point_counts_.push_back(submap.points.size());
+  usable_.push_back(!submap.points.empty() && !submap.scans.empty());
+  // Not across a jump of the odometry (Submap::started_at_jump_m): the two sides of a jump
+  // are placed only by a weak link unless a loop corrected it, and a misplaced pair passes for
+  // change.
+  if (k > 0 && submap.started_at_jump_m > 0.0) last_jump_ = k;
+  std::vector<Pair, Eigen::aligned_allocator<Pair>> added;
+  const std::size_t first = k > static_cast<std::size_t>(config_.neighbours)
+                                ? k - static_cast<std::size_t>(config_.neighbours)
+                                : 0;
+  for (std::size_t i = first; i < k; ++i) {
+    if (!usable_[i]) continue;
+    if (last_jump_ > i) {
+      ++stats_.pairs_across_jumps;
+      continue;
+    }
+    if (!usable_[k]) continue;
+    Pair p;
+    p.earlier = i;
+    p.later = k;
+    p.T_later_earlier = T_odometry_submap.inverse() * odometry_poses_[i];
+    added.push_back(p);
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  pending_uses_.push_back(0);
+  copies_.emplace_back();
+  if (config_.during_session && !stop_) {
+    // Also for the pairs to come, in which it is the earlier submap.
+    if (usable_[k]) copies_[k] = std::make_shared<const Submap>(submap);
+    for (const Pair& p : added) {
+      ++pending_uses_[p.earlier];
+      ++pending_uses_[p.later];
     }
   }
-  // Each submap's neighbour index is built once (in its own frame) and shared by its pairs.
+  pairs_.insert(pairs_.end(), added.begin(), added.end());
+  results_.resize(pairs_.size());
+  ReleaseCopies();
+  if (!added.empty()) wake_.notify_all();
+}
+
+void IntraSessionPairDetector::ReleaseCopies() {
+  // A submap can still be the earlier one of a future pair while it is among the last
+  // `neighbours` added.
+  const std::size_t added = copies_.size();
+  const std::size_t n = static_cast<std::size_t>(config_.neighbours);
+  for (std::size_t id = 0; id + n < added; ++id) {
+    if (copies_[id] && pending_uses_[id] == 0) copies_[id].reset();
+  }
+}
+
+void IntraSessionPairDetector::RunWorker() {
+  LowerThisThreadsPriority();
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (true) {
+    wake_.wait(lock, [&] { return stop_ || next_ < pairs_.size(); });
+    if (stop_) return;
+    const std::size_t index = next_++;
+    const Pair pair = pairs_[index];
+    const std::shared_ptr<const Submap> earlier = copies_[pair.earlier];
+    const std::shared_ptr<const Submap> later = copies_[pair.later];
+    lock.unlock();
+    StatusOr<DynamicDetectionResult> result = DetectOnCopies(pair, *earlier, *later);
+    lock.lock();
+    results_[index] = std::move(result);
+    ++stats_.pairs_during_session;
+    --pending_uses_[pair.earlier];
+    --pending_uses_[pair.later];
+    ReleaseCopies();
+  }
+}
+
+StatusOr<DynamicDetectionResult> IntraSessionPairDetector::DetectOnCopies(
+    const Pair& p, const Submap& earlier, const Submap& later) {
+  // Pairs come in the order of their later submap, so an index older than the earliest
+  // submap the coming pairs can hold is not needed again.
+  const std::size_t n = static_cast<std::size_t>(config_.neighbours);
+  indices_.erase(indices_.begin(), indices_.lower_bound(p.later > n ? p.later - n : 0));
+  double build_s = 0.0;
+  auto index_of = [&](std::size_t id, const Submap& submap) -> StatusOr<const PointIndex*> {
+    auto it = indices_.find(id);
+    if (it == indices_.end()) {
+      const auto start = std::chrono::steady_clock::now();
+      StatusOr<PointIndex> built = PointIndex::Create(submap.points);
+      if (!built.ok()) return built.status();
+      it = indices_.emplace(id, std::make_shared<const PointIndex>(std::move(built.value())))
+               .first;
+      build_s += SecondsSince(start);
+    }
+    return it->second.get();
+  };
+  StatusOr<const PointIndex*> earlier_index = index_of(p.earlier, earlier);
+  if (!earlier_index.ok()) return earlier_index.status();
+  StatusOr<const PointIndex*> later_index = index_of(p.later, later);
+  if (!later_index.ok()) return later_index.status();
+  StatusOr<DynamicDetectionResult> result =
+      detector_.Detect(earlier, later, p.T_later_earlier, *earlier_index.value(),
+                       *later_index.value());
+  if (result.ok()) {  // charged as the pools charge a built index: to the pair that built it
+    result.value().time_s += build_s;
+    result.value().stage.index_s += build_s;
+  }
+  return result;
+}
+
+std::size_t IntraSessionPairDetector::pairs_known() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return pairs_.size();
+}
+
+std::size_t IntraSessionPairDetector::pairs_detected_during_session() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return stats_.pairs_during_session;
+}
+
+StatusOr<IntraSessionPairsStats> IntraSessionPairDetector::Finish(
+    std::vector<Submap, Eigen::aligned_allocator<Submap>>* submaps) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  if (worker_.joinable()) worker_.join();
+  if (finished_) return Status::Error("intra-session pairs: Finish called twice");
+  finished_ = true;
+  std::vector<Submap, Eigen::aligned_allocator<Submap>>& maps = *submaps;
+  if (maps.size() != point_counts_.size()) {
+    return Status::Error("intra-session pairs: " + std::to_string(maps.size()) +
+                         " submaps given, " + std::to_string(point_counts_.size()) + " added");
+  }
+  for (std::size_t k = 0; k < maps.size(); ++k) {
+    if (maps[k].points.size() != point_counts_[k]) {
+      return Status::Error("intra-session pairs: submap " + std::to_string(k) +
+                           " changed after it was added");
+    }
+  }
+  copies_.clear();
+  indices_.clear();
+  // The pairs the worker did not reach: each submap's neighbour index built once (in its own
+  // frame) and shared by its pairs.
+  std::vector<std::size_t> left;
+  std::vector<int> uses(maps.size(), 0);
+  for (std::size_t i = 0; i < pairs_.size(); ++i) {
+    if (results_[i].has_value()) continue;
+    left.push_back(i);
+    ++uses[pairs_[i].earlier];
+    ++uses[pairs_[i].later];
+  }
   PointIndexPool indices(std::move(uses),
                          [&](std::size_t k) -> const PointVector& { return maps[k].points; });
-  std::vector<StatusOr<DynamicDetectionResult>> detections(pairs.size(),
-                                                           Status::Error("not run"));
-  ParallelFor(pairs.size(), config.num_threads, [&](std::size_t i) {
-    const Pair& p = pairs[i];
-    const Pose3 T_later_earlier =
-        maps[p.later].T_map_submap.inverse() * maps[p.earlier].T_map_submap;
-    detections[i] = detector.value().Detect(maps[p.earlier], maps[p.later], T_later_earlier,
-                                            &indices, p.earlier, &indices, p.later);
+  ParallelFor(left.size(), config_.num_threads, [&](std::size_t i) {
+    const Pair& p = pairs_[left[i]];
+    results_[left[i]] = detector_.Detect(maps[p.earlier], maps[p.later], p.T_later_earlier,
+                                         &indices, p.earlier, &indices, p.later);
   });
-  stats.pairs = pairs.size();
+  IntraSessionPairsStats stats = stats_;
+  stats.pairs = pairs_.size();
   std::vector<std::vector<std::uint8_t>> dynamic(maps.size());
   for (std::size_t k = 0; k < maps.size(); ++k) dynamic[k].assign(maps[k].points.size(), 0);
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (!detections[i].ok()) {
+  for (std::size_t i = 0; i < pairs_.size(); ++i) {
+    const StatusOr<DynamicDetectionResult>& detection = *results_[i];
+    if (!detection.ok()) {
       ++stats.skipped_pairs;
       continue;
     }
-    const DynamicDetectionResult& d = detections[i].value();
+    const DynamicDetectionResult& d = detection.value();
     stats.pair_s.push_back(d.time_s);
     stats.stage_s.Add(d.stage);
-    const Pair& p = pairs[i];
-    if (d.MarksMoreThan(config.max_dynamic_fraction, maps[p.earlier].points.size(),
+    const Pair& p = pairs_[i];
+    if (d.MarksMoreThan(config_.max_dynamic_fraction, maps[p.earlier].points.size(),
                         maps[p.later].points.size())) {
       ++stats.skipped_pairs;
       continue;
@@ -109,6 +272,18 @@ StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
     stats.points_removed += before - maps[k].points.size();
   }
   return stats;
+}
+
+StatusOr<IntraSessionPairsStats> RemoveDynamicsBetweenSubmaps(
+    const IntraSessionPairsConfig& config,
+    std::vector<Submap, Eigen::aligned_allocator<Submap>>* submaps) {
+  IntraSessionPairsConfig at_once = config;
+  at_once.during_session = false;
+  StatusOr<std::unique_ptr<IntraSessionPairDetector>> pairs =
+      IntraSessionPairDetector::Create(at_once);
+  if (!pairs.ok()) return pairs.status();
+  for (const Submap& submap : *submaps) pairs.value()->Add(submap, submap.T_map_submap);
+  return pairs.value()->Finish(submaps);
 }
 
 }  // namespace core

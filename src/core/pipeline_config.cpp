@@ -104,6 +104,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"intra_session_pairs", "neighbours", &s.intra_pairs.neighbours},
       {"intra_session_pairs", "max_dynamic_fraction", &s.intra_pairs.max_dynamic_fraction},
       {"intra_session_pairs", "num_threads", &s.intra_pairs.num_threads},
+      {"intra_session_pairs", "during_session", &s.intra_pairs.during_session},
       {"intra_session_pairs", "rays_from_viewing_scans", &s.intra_pairs.rays_from_viewing_scans},
       {"intra_session_pairs", "min_pass_incidence_rad", &s.intra_pairs.min_pass_incidence_rad},
       {"intra_session_pairs", "min_cluster_coarse_fraction",

@@ -57,6 +57,8 @@ struct SessionMapper::State {
   PointVector first_scan;  // the first frame_anchor.scans scans, in the first one's frame
   Pose3 first_scan_odometry = Pose3::Identity();
   std::uint32_t first_submap = 0;
+  // The pair detection between neighbouring submaps, fed as they finish (null: disabled).
+  std::unique_ptr<IntraSessionPairDetector> pairs;
 
   State(const SessionMapperConfig& c, const std::string& s, Odometry o, SubmapBuilder b,
         SubmapRegistration r)
@@ -105,6 +107,7 @@ struct SessionMapper::State {
                                            config.odometry_sigma_rotation_rad));
       graph.AddEdge(edge);
     }
+    if (pairs) pairs->Add(submap, odom_origins[id]);
     const VerticalEvidence vertical =
         EstimateVerticalEvidence(submap.points, config.vertical_structure);
     if (vertical.valid) graph.SetVerticalPrior(id, vertical.information);
@@ -219,6 +222,21 @@ struct SessionMapper::State {
     for (Submap& submap : builder.TakeFinished()) AddFinishedSubmap(std::move(submap));
   }
 
+  // A new pair detector for the intra_pairs settings; the submaps finished so far are added
+  // again, their pairs left for Finish (no copies of the whole session at once).
+  Status ResetPairs() {
+    pairs.reset();
+    if (!config.intra_pairs.enabled) return Status::Ok();
+    IntraSessionPairsConfig c = config.intra_pairs;
+    if (!submaps.empty()) c.during_session = false;
+    StatusOr<std::unique_ptr<IntraSessionPairDetector>> created =
+        IntraSessionPairDetector::Create(c);
+    if (!created.ok()) return created.status();
+    pairs = std::move(created.value());
+    for (const Submap& submap : submaps) pairs->Add(submap, odom_origins[submap.id]);
+    return Status::Ok();
+  }
+
   // Everything after the odometry, shared by AddScan and AddRegisteredScan. A scan whose ICP
   // failed after the first one (a jump of the sensor pose, a long gap, a scan that does not
   // match its surroundings) has only a predicted pose: it is skipped, not put into a submap at
@@ -284,9 +302,12 @@ StatusOr<SessionMapper> SessionMapper::Create(const SessionMapperConfig& config,
   StatusOr<SubmapRegistration> registration =
       SubmapRegistration::Create(config.intra_loops.registration);
   if (!registration.ok()) return registration.status();
-  return SessionMapper(std::make_unique<State>(config, session, std::move(odometry.value()),
-                                               std::move(builder.value()),
-                                               std::move(registration.value())));
+  auto state = std::make_unique<State>(config, session, std::move(odometry.value()),
+                                       std::move(builder.value()),
+                                       std::move(registration.value()));
+  Status pairs = state->ResetPairs();
+  if (!pairs.ok()) return pairs;
+  return SessionMapper(std::move(state));
 }
 
 Status SessionMapper::AddScan(const LidarScan& raw_scan) {
@@ -333,7 +354,8 @@ Status SessionMapper::UpdateConfig(const SessionMapperConfig& config) {
   st.graph.set_config(config.pose_graph);
   st.registration = std::move(registration.value());
   st.targets.clear();  // built with the old registration config
-  return Status::Ok();
+  // The pairs restart with the new settings (this session's from its end, see ResetPairs).
+  return st.ResetPairs();
 }
 
 const SessionMapperConfig& SessionMapper::config() const { return state_->config; }
@@ -383,9 +405,9 @@ StatusOr<SessionResult> SessionMapper::Finish() {
     result.anchor = EstimateFirstScanPose(st.first_scan, st.submaps, st.first_submap,
                                           st.config.frame_anchor);
   }
-  if (st.config.intra_pairs.enabled) {
-    StatusOr<IntraSessionPairsStats> pairs =
-        RemoveDynamicsBetweenSubmaps(st.config.intra_pairs, &st.submaps);
+  if (st.pairs) {
+    StatusOr<IntraSessionPairsStats> pairs = st.pairs->Finish(&st.submaps);
+    st.pairs.reset();
     if (!pairs.ok()) return pairs.status();
     st.timings.intra_pair_detection_s = pairs.value().pair_s;
     result.intra_pairs = pairs.value();

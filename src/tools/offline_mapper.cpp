@@ -293,9 +293,10 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   if (pairs.pairs > 0) {
     std::fprintf(stderr,
                  "%s: %zu points of moving objects removed between neighbouring submaps "
-                 "(%zu pairs, %zu left unchanged as misaligned, %zu not compared across odometry "
-                 "jumps, %.2f s per pair median)\n",
-                 name.c_str(), pairs.points_removed, pairs.pairs, pairs.skipped_pairs,
+                 "(%zu pairs, %zu of them while the session was mapped, %zu left unchanged as "
+                 "misaligned, %zu not compared across odometry jumps, %.2f s per pair median)\n",
+                 name.c_str(), pairs.points_removed, pairs.pairs, pairs.pairs_during_session,
+                 pairs.skipped_pairs,
                  pairs.pairs_across_jumps, core::Summarize(pairs.pair_s).median);
     std::string steps;
     for (const auto& step : pairs.stage_s.Named()) {
