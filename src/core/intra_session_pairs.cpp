@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <string>
+#include <system_error>
 #include <utility>
 
 #include "multisession_mapper/core/parallel_for.h"
@@ -43,12 +44,17 @@ DynamicDetectionConfig IntraSessionPairsConfig::DetectionConfig() const {
 
 namespace {
 
-// Best effort: a worker that only takes the CPU time the pipeline's threads leave.
-void LowerThisThreadsPriority() {
+// Best effort: idle, a worker that only takes the CPU time the pipeline's threads leave;
+// normal, one that is waited for (raising it back may be refused without privileges; it then
+// still runs on the cores its waiter leaves idle).
+void SetPriority(std::thread::native_handle_type thread, bool idle) {
 #if defined(__linux__) && defined(SCHED_IDLE)
   sched_param param{};
   param.sched_priority = 0;
-  pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
+  pthread_setschedparam(thread, idle ? SCHED_IDLE : SCHED_OTHER, &param);
+#else
+  (void)thread;
+  (void)idle;
 #endif
 }
 
@@ -64,23 +70,43 @@ StatusOr<std::unique_ptr<IntraSessionPairDetector>> IntraSessionPairDetector::Cr
   if (!valid.ok()) return valid;
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(config.DetectionConfig());
   if (!detector.ok()) return detector.status();
-  return std::unique_ptr<IntraSessionPairDetector>(
+  std::unique_ptr<IntraSessionPairDetector> pairs(
       new IntraSessionPairDetector(config, std::move(detector.value())));
+  if (config.during_session) {
+    try {
+      pairs->worker_ = std::thread([p = pairs.get()] { p->RunWorker(); });
+    } catch (const std::system_error&) {
+      pairs->config_.during_session = false;  // no thread to be had: every pair at Finish
+    }
+  }
+  return pairs;
 }
 
 IntraSessionPairDetector::IntraSessionPairDetector(const IntraSessionPairsConfig& config,
                                                    DynamicDetector detector)
-    : config_(config), detector_(std::move(detector)) {
-  if (config_.during_session) worker_ = std::thread([this] { RunWorker(); });
-}
+    : config_(config), detector_(std::move(detector)) {}
 
-IntraSessionPairDetector::~IntraSessionPairDetector() {
+IntraSessionPairDetector::~IntraSessionPairDetector() { StopWorker(); }
+
+void IntraSessionPairDetector::StopWorker() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;
   }
   wake_.notify_all();
-  if (worker_.joinable()) worker_.join();
+  if (!worker_.joinable()) return;
+  SetPriority(worker_.native_handle(), false);  // its current pair is now waited for
+  worker_.join();
+}
+
+void IntraSessionPairDetector::CatchUp() {
+  if (!worker_.joinable()) return;
+  SetPriority(worker_.native_handle(), false);
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    caught_up_.wait(lock, [&] { return stop_ || worker_idle_; });
+  }
+  SetPriority(worker_.native_handle(), true);
 }
 
 void IntraSessionPairDetector::Add(const Submap& submap, const Pose3& T_odometry_submap) {
@@ -93,6 +119,7 @@ void IntraSessionPairDetector::Add(const Submap& submap, const Pose3& T_odometry
   // change.
   if (k > 0 && submap.started_at_jump_m > 0.0) last_jump_ = k;
   std::vector<Pair, Eigen::aligned_allocator<Pair>> added;
+  std::vector<std::shared_ptr<const Submap>> dropped;  // freed after the lock
   const std::size_t first = k > static_cast<std::size_t>(config_.neighbours)
                                 ? k - static_cast<std::size_t>(config_.neighbours)
                                 : 0;
@@ -109,51 +136,82 @@ void IntraSessionPairDetector::Add(const Submap& submap, const Pose3& T_odometry
     p.T_later_earlier = T_odometry_submap.inverse() * odometry_poses_[i];
     added.push_back(p);
   }
-  std::lock_guard<std::mutex> lock(mutex_);
-  pending_uses_.push_back(0);
-  copies_.emplace_back();
-  if (config_.during_session && !stop_) {
-    // Also for the pairs to come, in which it is the earlier submap.
-    if (usable_[k]) copies_[k] = std::make_shared<const Submap>(submap);
+  // A copy also for the pairs to come, in which it is the earlier submap; none while
+  // kMaxCopies wait for the worker (a starved worker leaves its pairs to Finish).
+  std::shared_ptr<const Submap> copy;
+  if (config_.during_session && usable_[k] && copies_alive() < kMaxCopies) {
+    copy = std::make_shared<const Submap>(submap);
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    pending_uses_.push_back(0);
+    copies_.push_back(std::move(copy));
     for (const Pair& p : added) {
       ++pending_uses_[p.earlier];
       ++pending_uses_[p.later];
     }
+    pairs_.insert(pairs_.end(), added.begin(), added.end());
+    results_.resize(pairs_.size());
+    if (!added.empty()) worker_idle_ = false;
+    ReleaseCopies(&dropped);
   }
-  pairs_.insert(pairs_.end(), added.begin(), added.end());
-  results_.resize(pairs_.size());
-  ReleaseCopies();
   if (!added.empty()) wake_.notify_all();
 }
 
-void IntraSessionPairDetector::ReleaseCopies() {
+std::size_t IntraSessionPairDetector::copies_alive() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::size_t alive = 0;
+  for (std::size_t id = release_from_; id < copies_.size(); ++id) alive += copies_[id] != nullptr;
+  return alive;
+}
+
+void IntraSessionPairDetector::ReleaseCopies(std::vector<std::shared_ptr<const Submap>>* dropped) {
   // A submap can still be the earlier one of a future pair while it is among the last
   // `neighbours` added.
   const std::size_t added = copies_.size();
   const std::size_t n = static_cast<std::size_t>(config_.neighbours);
-  for (std::size_t id = 0; id + n < added; ++id) {
-    if (copies_[id] && pending_uses_[id] == 0) copies_[id].reset();
+  for (std::size_t id = release_from_; id + n < added; ++id) {
+    if (copies_[id] && pending_uses_[id] == 0) dropped->push_back(std::move(copies_[id]));
+  }
+  while (release_from_ + n < added && !copies_[release_from_] &&
+         pending_uses_[release_from_] == 0) {
+    ++release_from_;
   }
 }
 
 void IntraSessionPairDetector::RunWorker() {
-  LowerThisThreadsPriority();
+  SetPriority(pthread_self(), true);
   std::unique_lock<std::mutex> lock(mutex_);
   while (true) {
+    if (next_ == pairs_.size()) {
+      worker_idle_ = true;
+      caught_up_.notify_all();
+    }
     wake_.wait(lock, [&] { return stop_ || next_ < pairs_.size(); });
-    if (stop_) return;
+    if (stop_) {
+      caught_up_.notify_all();
+      return;
+    }
     const std::size_t index = next_++;
     const Pair pair = pairs_[index];
-    const std::shared_ptr<const Submap> earlier = copies_[pair.earlier];
-    const std::shared_ptr<const Submap> later = copies_[pair.later];
-    lock.unlock();
-    StatusOr<DynamicDetectionResult> result = DetectOnCopies(pair, *earlier, *later);
-    lock.lock();
-    results_[index] = std::move(result);
-    ++stats_.pairs_during_session;
+    std::shared_ptr<const Submap> earlier = copies_[pair.earlier];
+    std::shared_ptr<const Submap> later = copies_[pair.later];
+    std::vector<std::shared_ptr<const Submap>> dropped;  // freed after the lock
+    if (earlier && later) {  // else not copied (kMaxCopies): left for Finish
+      lock.unlock();
+      StatusOr<DynamicDetectionResult> result = DetectOnCopies(pair, *earlier, *later);
+      earlier.reset();
+      later.reset();
+      lock.lock();
+      results_[index] = std::move(result);
+      ++stats_.pairs_during_session;
+    }
     --pending_uses_[pair.earlier];
     --pending_uses_[pair.later];
-    ReleaseCopies();
+    ReleaseCopies(&dropped);
+    lock.unlock();
+    dropped.clear();
+    lock.lock();
   }
 }
 
@@ -202,12 +260,7 @@ std::size_t IntraSessionPairDetector::pairs_detected_during_session() {
 
 StatusOr<IntraSessionPairsStats> IntraSessionPairDetector::Finish(
     std::vector<Submap, Eigen::aligned_allocator<Submap>>* submaps) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stop_ = true;
-  }
-  wake_.notify_all();
-  if (worker_.joinable()) worker_.join();
+  StopWorker();
   if (finished_) return Status::Error("intra-session pairs: Finish called twice");
   finished_ = true;
   std::vector<Submap, Eigen::aligned_allocator<Submap>>& maps = *submaps;

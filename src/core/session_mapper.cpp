@@ -222,16 +222,19 @@ struct SessionMapper::State {
     for (Submap& submap : builder.TakeFinished()) AddFinishedSubmap(std::move(submap));
   }
 
-  // A new pair detector for the intra_pairs settings; the submaps finished so far are added
-  // again, their pairs left for Finish (no copies of the whole session at once).
+  // A new pair detector for the intra_pairs settings. Mid-session the submaps finished so far
+  // are added again and every pair of the session is left for Finish (no copies of the whole
+  // session at once, and the settings of a live change apply to all its pairs).
   Status ResetPairs() {
-    pairs.reset();
-    if (!config.intra_pairs.enabled) return Status::Ok();
+    if (!config.intra_pairs.enabled) {
+      pairs.reset();
+      return Status::Ok();
+    }
     IntraSessionPairsConfig c = config.intra_pairs;
     if (!submaps.empty()) c.during_session = false;
     StatusOr<std::unique_ptr<IntraSessionPairDetector>> created =
         IntraSessionPairDetector::Create(c);
-    if (!created.ok()) return created.status();
+    if (!created.ok()) return created.status();  // the old detector stays
     pairs = std::move(created.value());
     for (const Submap& submap : submaps) pairs->Add(submap, odom_origins[submap.id]);
     return Status::Ok();

@@ -133,6 +133,13 @@ class IntraSessionPairDetector {
   /// Pairs known so far, and those the worker has detected.
   std::size_t pairs_known();
   std::size_t pairs_detected_during_session();
+  /// Waits, with the worker at normal priority, until it has taken every pair known (those
+  /// whose submaps were not copied it leaves to Finish). For a pause, and for tests.
+  void CatchUp();
+  /// Most submap copies alive at once; a submap added while this many wait is not copied and
+  /// its pairs are left for Finish (bounds the memory of a starved worker; ~5 MB each on
+  /// `campus`).
+  static constexpr std::size_t kMaxCopies = 8;
   /// `submaps`: the added submaps, by id, their points and scans unchanged since Add (an
   /// error otherwise, when their number or point counts differ). Once only.
   StatusOr<IntraSessionPairsStats> Finish(
@@ -146,11 +153,15 @@ class IntraSessionPairDetector {
   };
   IntraSessionPairDetector(const IntraSessionPairsConfig& config, DynamicDetector detector);
   void RunWorker();
+  /// Stops the worker after its current pair, at normal priority, and joins it.
+  void StopWorker();
+  std::size_t copies_alive();
   /// The worker's detection of pair `p` on the copies, with its own cache of indices.
   StatusOr<DynamicDetectionResult> DetectOnCopies(const Pair& p, const Submap& earlier,
                                                   const Submap& later);
-  /// Drops the copies no pending or future pair needs (mutex_ held).
-  void ReleaseCopies();
+  /// Moves the copies no pending or future pair needs into `dropped`, to be freed after the
+  /// lock (mutex_ held).
+  void ReleaseCopies(std::vector<std::shared_ptr<const Submap>>* dropped);
 
   IntraSessionPairsConfig config_;
   DynamicDetector detector_;
@@ -165,7 +176,10 @@ class IntraSessionPairDetector {
   // Shared with the worker.
   std::mutex mutex_;
   std::condition_variable wake_;
+  std::condition_variable caught_up_;
   bool stop_ = false;
+  bool worker_idle_ = true;  // it has taken every pair known
+  std::size_t release_from_ = 0;  // copies before this id are all released
   std::size_t next_ = 0;  // the worker's next pair
   std::vector<std::optional<StatusOr<DynamicDetectionResult>>> results_;  // by pair
   std::vector<std::shared_ptr<const Submap>> copies_;                     // by id

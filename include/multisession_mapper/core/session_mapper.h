@@ -149,8 +149,8 @@ class SessionMapper {
   /// `odometry` applies (submap builder, in-session dynamics, intra-session loops, pose graph,
   /// odometry edge sigmas); the odometry of AddScan keeps its creation config (the nodelets
   /// run their own Odometry). The pair detection between neighbouring submaps restarts with
-  /// the new settings: the pairs of the submaps finished so far are detected at Finish, not
-  /// during the session (IntraSessionPairsConfig::during_session). Refuses an invalid config
+  /// the new settings, and every pair of this session is then detected at Finish, not during
+  /// the session (IntraSessionPairsConfig::during_session). Refuses an invalid config
   /// and keeps the old one.
   Status UpdateConfig(const SessionMapperConfig& config);
   const SessionMapperConfig& config() const;
