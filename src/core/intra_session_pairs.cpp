@@ -11,6 +11,7 @@
 
 #include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/point_index_pool.h"
+#include "multisession_mapper/core/stopwatch.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -56,10 +57,6 @@ void SetPriority(std::thread::native_handle_type thread, bool idle) {
   (void)thread;
   (void)idle;
 #endif
-}
-
-double SecondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 }  // namespace
