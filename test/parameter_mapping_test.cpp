@@ -97,7 +97,7 @@ TEST(ParameterMapping, EveryParameterReachesTheCoreAndComesBack) {
     core::SessionMapperConfig c;
     ApplySubmapManagerConfig(p, &c);
     ExpectSameValues(ToSubmapManagerConfig(c), p, "SubmapManager");
-    EXPECT_EQ(changed, 59);
+    EXPECT_EQ(changed, 62);
     EXPECT_TRUE(c.Validate().ok()) << c.Validate().message();
   }
   {

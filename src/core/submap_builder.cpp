@@ -13,6 +13,9 @@ namespace core {
 Status InSessionDynamicFilterConfig::Validate() const {
   Status s = range_image.Validate();
   if (!s.ok()) return s;
+  if (!(residue_min_rise_m >= 0.0) || !std::isfinite(residue_min_rise_m)) {
+    return Status::Error("in_session_dynamics.residue_min_rise_m must be >= 0");
+  }
   if (!(margin_base_m > 0.0) || !(margin_per_m >= 0.0) || !std::isfinite(margin_base_m) ||
       !std::isfinite(margin_per_m)) {
     return Status::Error("dynamic_filter.margin_base_m must be > 0 and margin_per_m >= 0");
@@ -93,6 +96,7 @@ void SubmapBuilder::StartSubmap(const Pose3& T_odom_sensor, double started_at_ju
   open.submap.T_map_submap = T_odom_sensor;
   open.submap.started_at_jump_m = started_at_jump_m;
   open.first_scan = stats_.scans;
+  open.robust_height = config_.robust_height;
   open_.push_back(std::move(open));
 }
 
@@ -262,10 +266,14 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
       if (q.key != last_key) {
         const auto found = current.voxel_index.FindOrInsert(
             q.key, q.hash, static_cast<std::uint32_t>(current.voxels.size()));
-        if (found.second) current.voxels.emplace_back();
+        if (found.second) {
+          current.voxels.emplace_back();
+          if (current.robust_height) current.heights.emplace_back();
+        }
         last_key = q.key;
         last_index = found.first;
         __builtin_prefetch(&current.voxels[last_index]);
+        if (current.robust_height) __builtin_prefetch(&current.heights[last_index]);
       }
       q.voxel = last_index;
     }
@@ -273,6 +281,11 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     voxel.sum += pending_[i].p_submap;
     ++voxel.count;
     voxel.views.last_scan = scan_index;
+    if (current.robust_height) {
+      current.heights[pending_[i].voxel].Add(pending_[i].p_submap.z(),
+                                             pending_[i].key.z() * config_.voxel_size_m,
+                                             config_.voxel_size_m);
+    }
     if (pending_[i].range_sq < voxel.nearest_range_sq) {
       voxel.nearest_range_sq = pending_[i].range_sq;
       voxel.views.nearest_scan = scan_index;
@@ -388,17 +401,18 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     frontier.swap(next);
   }
   if (c.enabled) DropSeenThroughGroups(*open, &dynamic);
+  if (c.enabled && c.drop_residue_under_removed) DropResidueUnderRemoved(*open, &dynamic);
   for (std::size_t i = 0; i < open->voxels.size(); ++i) {
     if (dynamic[i]) {
       ++stats_.voxels_dropped_dynamic;
       continue;
     }
-    const VoxelPoint& voxel = open->voxels[i];
-    submap.points.push_back(voxel.sum / voxel.count);
-    submap.views.push_back(voxel.views);
+    submap.points.push_back(StoredPoint(*open, i));
+    submap.views.push_back(open->voxels[i].views);
     ++stats_.voxels_kept;
   }
   open->voxels = {};
+  open->heights = {};
   open->voxel_index.Release();
   ++stats_.submaps_finished;
   finished_.push_back(std::move(submap));
@@ -428,6 +442,48 @@ void SubmapBuilder::DropSeenThroughGroups(const OpenSubmap& open,
     (*dynamic)[index[k]] = 1;
     ++stats_.voxels_dropped_groups;
   }
+}
+
+Eigen::Vector3d SubmapBuilder::StoredPoint(const OpenSubmap& open, std::size_t i) const {
+  const VoxelPoint& voxel = open.voxels[i];
+  Eigen::Vector3d point = voxel.sum / voxel.count;
+  if (open.robust_height) point.z() = open.heights[i].RobustHeight(point.z());
+  return point;
+}
+
+void SubmapBuilder::DropResidueUnderRemoved(const OpenSubmap& open,
+                                            std::vector<std::uint8_t>* dynamic) {
+  std::vector<std::uint32_t> residue;
+  const double min_rise_m = config_.dynamic_filter.residue_min_rise_m;
+  for (std::size_t i = 0; i < open.voxels.size(); ++i) {
+    if ((*dynamic)[i]) continue;
+    const VoxelPoint& voxel = open.voxels[i];
+    const VoxelKey key = ToVoxelKey(voxel.sum / voxel.count, config_.voxel_size_m);
+    const std::uint32_t below = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 1));
+    if (below == VoxelIndexTable::kEmpty || (*dynamic)[below] ||
+        open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 2)) != VoxelIndexTable::kEmpty) {
+      continue;
+    }
+    // Ground whose returns straddle the layers' boundary fills both voxels at about one height.
+    if (StoredPoint(open, i).z() - StoredPoint(open, below).z() < min_rise_m) continue;
+    bool removed_above = false;
+    bool kept_above = false;
+    for (int dx = -1; dx <= 1 && !kept_above; ++dx) {
+      for (int dy = -1; dy <= 1 && !kept_above; ++dy) {
+        const std::uint32_t v =
+            open.voxel_index.Find(VoxelKey(key.x() + dx, key.y() + dy, key.z() + 1));
+        if (v == VoxelIndexTable::kEmpty) continue;
+        if ((*dynamic)[v]) {
+          removed_above = true;
+        } else {
+          kept_above = true;
+        }
+      }
+    }
+    if (removed_above && !kept_above) residue.push_back(static_cast<std::uint32_t>(i));
+  }
+  for (const std::uint32_t v : residue) (*dynamic)[v] = 1;
+  stats_.voxels_dropped_residue += residue.size();
 }
 
 void SubmapBuilder::FinishSession() {

@@ -26,6 +26,7 @@ namespace ros_params {
   F(submap_voxel_size_m, s.submaps.voxel_size_m)                                            \
   F(submap_max_point_range_m, s.submaps.max_point_range_m)                                  \
   F(submap_break_on_jump_m, s.submaps.break_on_jump_m)                                      \
+  F(submap_robust_height, s.submaps.robust_height)                                          \
   F(in_session_dynamics_enabled, s.submaps.dynamic_filter.enabled)                          \
   F(in_session_dynamics_margin_base_m, s.submaps.dynamic_filter.margin_base_m)              \
   F(in_session_dynamics_margin_per_m, s.submaps.dynamic_filter.margin_per_m)                \
@@ -42,6 +43,9 @@ namespace ros_params {
   F(in_session_dynamics_grow_max_scan_gap, s.submaps.dynamic_filter.grow_max_scan_gap)      \
   F(in_session_dynamics_grow_over_measured_ground,                                          \
     s.submaps.dynamic_filter.grow_over_measured_ground)                                     \
+  F(in_session_dynamics_drop_residue_under_removed,                                         \
+    s.submaps.dynamic_filter.drop_residue_under_removed)                                    \
+  F(in_session_dynamics_residue_min_rise_m, s.submaps.dynamic_filter.residue_min_rise_m)    \
   F(in_session_dynamics_past_checks, s.submaps.dynamic_filter.past_checks)                  \
   F(in_session_dynamics_past_check_stride, s.submaps.dynamic_filter.past_check_stride)      \
   F(in_session_dynamics_group_min_seen_through_ratio,                                           \

@@ -27,6 +27,7 @@
 #include "multisession_mapper/core/status.h"
 #include "multisession_mapper/core/submap.h"
 #include "multisession_mapper/core/types.h"
+#include "multisession_mapper/core/voxel_height_histogram.h"
 #include "multisession_mapper/core/voxel_index_table.h"
 #include "multisession_mapper/core/voxel_key.h"
 
@@ -91,6 +92,16 @@ struct InSessionDynamicFilterConfig {
   /// objects removed 94.46 -> 94.73 / 94.57 -> 94.97 / 95.42 -> 95.63 %, static SA 99.57 /
   /// 99.69 / 99.71 % unchanged.
   bool grow_over_measured_ground = true;
+  /// The layer right above the ground under a dropped object (feet, the bottom of a wheel):
+  /// after the rules above and the groups, a kept voxel is dropped too when the voxel right
+  /// below it is kept and has nothing below it (the ground), its stored point lies at least
+  /// `residue_min_rise_m` above that voxel's (not ground whose returns straddle the boundary
+  /// of the two layers), some of the 9 voxels right above it were dropped and none of them is
+  /// kept: what stood there was removed, and nothing that stays rests on it. Such a voxel is
+  /// kept consistent by the ground just behind it and stands 0.05-0.2 m above the ground
+  /// where a pedestrian stood.
+  bool drop_residue_under_removed = true;
+  double residue_min_rise_m = 0.06;
   /// Checks against the past: a voxel that a scan creates is also checked against the range
   /// images of this many earlier checks (the last ones, thinned by past_check_stride),
   /// oldest first, as if they had come before it. A beam of an earlier scan that passed where
@@ -132,6 +143,11 @@ struct SubmapBuilderConfig {
   double max_rotation_rad = 0.7;
   /// Submap voxel edge [m]; one point (the centroid) per voxel is stored.
   double voxel_size_m = 0.2;
+  /// The stored point's height is the mean of the voxel's returns around their median height
+  /// (VoxelHeightHistogram: the median's eighth of the voxel and one on each side) instead of
+  /// the mean of all: a minority of returns of an object standing on a ground voxel (feet,
+  /// a car's underside) does not lift the ground point. x and y stay the centroid's.
+  bool robust_height = true;
   /// Scan points farther than this from the sensor are not accumulated [m].
   double max_point_range_m = 60.0;
   /// A scan whose odometry pose lies farther than this from the motion model's prediction
@@ -155,6 +171,8 @@ struct SubmapBuilderStats {
   std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown ones and the groups'
   std::uint64_t voxels_dropped_grown = 0;
   std::uint64_t voxels_dropped_groups = 0;  ///< by InSessionDynamicFilterConfig::groups
+  /// by InSessionDynamicFilterConfig::drop_residue_under_removed
+  std::uint64_t voxels_dropped_residue = 0;
   std::uint64_t voxels_kept = 0;
   std::uint64_t jump_breaks = 0;  ///< submaps ended at a jump of the odometry
 };
@@ -215,6 +233,12 @@ class SubmapBuilder {
     /// Voxels in a flat array (the visibility checks sweep all of them, every check) and
     /// their index by voxel key.
     std::vector<VoxelPoint> voxels;
+    /// The heights of each voxel's returns (SubmapBuilderConfig::robust_height; empty when
+    /// off), beside `voxels` rather than in them: the checks sweep `voxels` and need none.
+    std::vector<VoxelHeightHistogram> heights;
+    /// SubmapBuilderConfig::robust_height when the submap started (a change applies from the
+    /// next submap on).
+    bool robust_height = false;
     VoxelIndexTable voxel_index;
     bool full = false;           ///< a newer submap has started; only checks remain
     std::uint64_t first_scan = 0;  ///< scan counter of its first scan (views' scan 0)
@@ -240,6 +264,12 @@ class SubmapBuilder {
   /// Marks in `dynamic` the kept voxels of the groups InSessionDynamicFilterConfig::groups
   /// drops (after the per-voxel rules and the growing).
   void DropSeenThroughGroups(const OpenSubmap& open, std::vector<std::uint8_t>* dynamic);
+  /// Marks in `dynamic` the kept voxels InSessionDynamicFilterConfig::drop_residue_under_removed
+  /// drops (last, after the groups).
+  void DropResidueUnderRemoved(const OpenSubmap& open, std::vector<std::uint8_t>* dynamic);
+  /// The point voxel `i` of `open` stores: the centroid, with the robust height when the
+  /// submap has one (SubmapBuilderConfig::robust_height).
+  Eigen::Vector3d StoredPoint(const OpenSubmap& open, std::size_t i) const;
   /// Voxel `v` (at `key`) received no point after scan `since_scan`, the voxel right below it
   /// did and is not `dynamic`, and nothing lies below that one
   /// (InSessionDynamicFilterConfig::grow_over_measured_ground).
