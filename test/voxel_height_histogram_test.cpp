@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/voxel_height_histogram.h"
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -74,6 +75,15 @@ TEST(VoxelHeightHistogramTest, HeightsOutsideTheVoxelGoToTheEdgeSlices) {
   EXPECT_EQ(h.count(), 3u);
   // Median in the lowest slice; its neighbour slice is empty: mean of the two low returns.
   EXPECT_NEAR(h.RobustHeight(1.0), -0.0025, 1e-6);
+}
+
+TEST(VoxelHeightHistogramTest, HugeHeightsAreClampedBeforeTheCast) {
+  // Far outside the voxel (a caller's bug): counted in the edge slices, no out-of-range write.
+  VoxelHeightHistogram h;
+  h.Add(1e30, 0.0, kVoxel);
+  h.Add(-1e30, 0.0, kVoxel);
+  h.Add(std::numeric_limits<double>::quiet_NaN(), 0.0, kVoxel);
+  EXPECT_EQ(h.count(), 3u);
 }
 
 }  // namespace

@@ -11,7 +11,9 @@ void VoxelHeightHistogram::Add(double z_m, double floor_m, double voxel_m) {
   if (std::isnan(floor_m_)) floor_m_ = static_cast<float>(floor_m);
   const double offset_m = z_m - floor_m_;  // small: the float sums keep 0.1 mm
   const double position = offset_m / voxel_m * kSlices;
-  const int slice = position <= 0.0 ? 0 : std::min(kSlices - 1, static_cast<int>(position));
+  // Clamped before the cast (also NaN, to the lowest slice).
+  const int slice =
+      !(position > 0.0) ? 0 : static_cast<int>(std::min(position, kSlices - 1.0));
   if (count_[slice] == std::numeric_limits<std::uint16_t>::max()) {
     // Halve every slice: the proportions and the slices' mean heights stay.
     for (int s = 0; s < kSlices; ++s) {

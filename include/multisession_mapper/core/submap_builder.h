@@ -99,7 +99,9 @@ struct InSessionDynamicFilterConfig {
   /// of the two layers), some of the 9 voxels right above it were dropped and none of them is
   /// kept: what stood there was removed, and nothing that stays rests on it. Such a voxel is
   /// kept consistent by the ground just behind it and stands 0.05-0.2 m above the ground
-  /// where a pedestrian stood.
+  /// where a pedestrian stood. "Up" is the submap frame's z (the sensor's at the submap's
+  /// start); ground steeper than about 17 deg stacks two voxels more than 0.06 m apart in
+  /// one column, and the upper one would go under a removed object.
   bool drop_residue_under_removed = true;
   double residue_min_rise_m = 0.06;
   /// Checks against the past: a voxel that a scan creates is also checked against the range
@@ -168,7 +170,7 @@ struct SubmapBuilderConfig {
 struct SubmapBuilderStats {
   std::uint64_t scans = 0;
   std::uint64_t submaps_finished = 0;
-  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown ones and the groups'
+  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown, groups' and residue
   std::uint64_t voxels_dropped_grown = 0;
   std::uint64_t voxels_dropped_groups = 0;  ///< by InSessionDynamicFilterConfig::groups
   /// by InSessionDynamicFilterConfig::drop_residue_under_removed
