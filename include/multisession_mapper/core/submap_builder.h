@@ -143,7 +143,8 @@ struct SubmapBuilderConfig {
   double max_translation_m = 20.0;
   /// ... or beyond this rotation from the current origin [rad] (paper: 0.7 rad).
   double max_rotation_rad = 0.7;
-  /// Submap voxel edge [m]; one point (the centroid) per voxel is stored.
+  /// Submap voxel edge [m]; one point per voxel is stored (the centroid; its height see
+  /// robust_height).
   double voxel_size_m = 0.2;
   /// The stored point's height is the mean of the voxel's returns around their median height
   /// (VoxelHeightHistogram: the median's eighth of the voxel and one on each side) instead of
@@ -170,7 +171,7 @@ struct SubmapBuilderConfig {
 struct SubmapBuilderStats {
   std::uint64_t scans = 0;
   std::uint64_t submaps_finished = 0;
-  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown, groups' and residue
+  std::uint64_t voxels_dropped_dynamic = 0;  ///< includes the grown ones and the other rules'
   std::uint64_t voxels_dropped_grown = 0;
   std::uint64_t voxels_dropped_groups = 0;  ///< by InSessionDynamicFilterConfig::groups
   /// by InSessionDynamicFilterConfig::drop_residue_under_removed
