@@ -268,7 +268,9 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
             q.key, q.hash, static_cast<std::uint32_t>(current.voxels.size()));
         if (found.second) {
           current.voxels.emplace_back();
-          if (current.robust_height) current.heights.emplace_back();
+          if (current.robust_height) {
+            current.heights.emplace_back(q.key.z() * config_.voxel_size_m);
+          }
         }
         last_key = q.key;
         last_index = found.first;
@@ -282,9 +284,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     ++voxel.count;
     voxel.views.last_scan = scan_index;
     if (current.robust_height) {
-      current.heights[pending_[i].voxel].Add(pending_[i].p_submap.z(),
-                                             pending_[i].key.z() * config_.voxel_size_m,
-                                             config_.voxel_size_m);
+      current.heights[pending_[i].voxel].Add(pending_[i].p_submap.z(), config_.voxel_size_m);
     }
     if (pending_[i].range_sq < voxel.nearest_range_sq) {
       voxel.nearest_range_sq = pending_[i].range_sq;
@@ -323,14 +323,20 @@ bool SubmapBuilder::OnlyGroundBelowMeasuredSince(const OpenSubmap& open,
     return open.first_scan + static_cast<std::uint64_t>(x.views.last_scan);
   };
   if (last_hit(open.voxels[v]) > since_scan) return false;
+  const std::uint32_t below = KeptGroundBelow(open, dynamic, key);
+  return below != VoxelIndexTable::kEmpty && last_hit(open.voxels[below]) > since_scan;
+}
+
+std::uint32_t SubmapBuilder::KeptGroundBelow(const OpenSubmap& open,
+                                             const std::vector<std::uint8_t>& dynamic,
+                                             const VoxelKey& key) const {
   const std::uint32_t below = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 1));
-  if (below == VoxelIndexTable::kEmpty || dynamic[below] ||
-      last_hit(open.voxels[below]) <= since_scan) {
-    return false;
-  }
-  // The voxel below is the surface (nothing under it): `v` is the layer right above the
+  if (below == VoxelIndexTable::kEmpty || dynamic[below]) return VoxelIndexTable::kEmpty;
+  // The voxel below is the surface (nothing under it): `key` is the layer right above the
   // ground, not a voxel of a wall or pole whose face the rings sweep over as the robot moves.
-  return open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 2)) == VoxelIndexTable::kEmpty;
+  const bool under = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 2)) !=
+                     VoxelIndexTable::kEmpty;
+  return under ? VoxelIndexTable::kEmpty : below;
 }
 
 void SubmapBuilder::Finalize(OpenSubmap* open) {
@@ -459,11 +465,8 @@ void SubmapBuilder::DropResidueUnderRemoved(const OpenSubmap& open,
     if ((*dynamic)[i]) continue;
     const VoxelPoint& voxel = open.voxels[i];
     const VoxelKey key = ToVoxelKey(voxel.sum / voxel.count, config_.voxel_size_m);
-    const std::uint32_t below = open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 1));
-    if (below == VoxelIndexTable::kEmpty || (*dynamic)[below] ||
-        open.voxel_index.Find(VoxelKey(key.x(), key.y(), key.z() - 2)) != VoxelIndexTable::kEmpty) {
-      continue;
-    }
+    const std::uint32_t below = KeptGroundBelow(open, *dynamic, key);
+    if (below == VoxelIndexTable::kEmpty) continue;
     // Ground whose returns straddle the layers' boundary fills both voxels at about one height.
     if (StoredPoint(open, i).z() - StoredPoint(open, below).z() < min_rise_m) continue;
     bool removed_above = false;

@@ -1,14 +1,12 @@
 #include "multisession_mapper/core/voxel_height_histogram.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 
 namespace multisession_mapper {
 namespace core {
 
-void VoxelHeightHistogram::Add(double z_m, double floor_m, double voxel_m) {
-  if (std::isnan(floor_m_)) floor_m_ = static_cast<float>(floor_m);
+void VoxelHeightHistogram::Add(double z_m, double voxel_m) {
   const double offset_m = z_m - floor_m_;  // small: the float sums keep 0.1 mm
   const double position = offset_m / voxel_m * kSlices;
   // Clamped before the cast (also NaN, to the lowest slice).

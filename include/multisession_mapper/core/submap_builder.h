@@ -273,9 +273,12 @@ class SubmapBuilder {
   /// The point voxel `i` of `open` stores: the centroid, with the robust height when the
   /// submap has one (SubmapBuilderConfig::robust_height).
   Eigen::Vector3d StoredPoint(const OpenSubmap& open, std::size_t i) const;
+  /// The voxel right below `key` when it is kept (not `dynamic`) and nothing lies below it:
+  /// `key` is the layer right above the ground. VoxelIndexTable::kEmpty otherwise.
+  std::uint32_t KeptGroundBelow(const OpenSubmap& open, const std::vector<std::uint8_t>& dynamic,
+                                const VoxelKey& key) const;
   /// Voxel `v` (at `key`) received no point after scan `since_scan`, the voxel right below it
-  /// did and is not `dynamic`, and nothing lies below that one
-  /// (InSessionDynamicFilterConfig::grow_over_measured_ground).
+  /// did and is KeptGroundBelow (InSessionDynamicFilterConfig::grow_over_measured_ground).
   bool OnlyGroundBelowMeasuredSince(const OpenSubmap& open,
                                     const std::vector<std::uint8_t>& dynamic, std::uint32_t v,
                                     const VoxelKey& key, std::uint64_t since_scan) const;

@@ -10,7 +10,6 @@
 
 #include <array>
 #include <cstdint>
-#include <limits>
 
 namespace multisession_mapper {
 namespace core {
@@ -20,10 +19,12 @@ class VoxelHeightHistogram {
   /// Slices of the voxel's height.
   static constexpr int kSlices = 8;
 
-  /// Adds a return at height `z_m` [m] to the voxel of edge `voxel_m` whose floor is at
-  /// `floor_m` (the first return's floor is kept; a height outside the voxel goes to the
-  /// nearest slice).
-  void Add(double z_m, double floor_m, double voxel_m);
+  /// For the voxel whose floor (lowest z) is at `floor_m` [m].
+  explicit VoxelHeightHistogram(double floor_m) : floor_m_(static_cast<float>(floor_m)) {}
+
+  /// Adds a return at height `z_m` [m] (the voxel's edge is `voxel_m`; a height outside the
+  /// voxel goes to the nearest slice).
+  void Add(double z_m, double voxel_m);
 
   /// Mean height of the returns in the slice holding their median and in the slice on each
   /// side of it [m]; `fallback_m` when nothing was added.
@@ -35,7 +36,7 @@ class VoxelHeightHistogram {
  private:
   std::array<std::uint16_t, kSlices> count_{};
   std::array<float, kSlices> sum_m_{};  ///< of the heights above the floor
-  float floor_m_ = std::numeric_limits<float>::quiet_NaN();  ///< set by the first Add
+  float floor_m_;  ///< the voxel's lowest z [m]
 };
 
 }  // namespace core
