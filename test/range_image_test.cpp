@@ -221,6 +221,61 @@ TEST(RangeImage, ConfigValidation) {
   EXPECT_FALSE(c.Validate().ok());
 }
 
+TEST(RangeImage, CheckManyAgreesWithCheck) {
+  // Points all around the sensor at 2-70 m, given in a frame rotated and shifted against the
+  // sensor's (as submap voxels are): CheckMany must judge them as Check does, apart from the
+  // few whose direction lies on a bin's edge (CheckMany computes directions in float), and
+  // leave those beyond max_range_m unknown.
+  const RangeImage image(GroundAndWall(true), RangeImageConfig());
+  Eigen::Isometry3d T_sensor_frame = Eigen::Isometry3d::Identity();
+  T_sensor_frame.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                            Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  T_sensor_frame.translation() = Eigen::Vector3d(3.0, -2.0, 0.1);
+  std::vector<float> x, y, z;
+  std::vector<Eigen::Vector3d> in_sensor;
+  std::uint64_t state = 12345;
+  const auto uniform = [&state](double low, double high) {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return low + (high - low) * static_cast<double>(state >> 11) / 9007199254740992.0;
+  };
+  for (int i = 0; i < 20000; ++i) {
+    const Eigen::Vector3d p_sensor =
+        OnBeam(uniform(2.0, 70.0), uniform(-16.0, 16.0), uniform(-180.0, 180.0));
+    const Eigen::Vector3f p_frame = (T_sensor_frame.inverse() * p_sensor).cast<float>();
+    x.push_back(p_frame.x());
+    y.push_back(p_frame.y());
+    z.push_back(p_frame.z());
+    in_sensor.push_back(T_sensor_frame * p_frame.cast<double>());
+  }
+  RangeImage::Batch batch;
+  batch.R_sensor_frame = T_sensor_frame.linear().cast<float>();
+  batch.t_sensor_frame = T_sensor_frame.translation().cast<float>();
+  batch.max_range_m = 60.0;
+  batch.margin_base_m = 0.3;
+  batch.margin_per_m = 0.02;
+  std::vector<Visibility> out(x.size());
+  std::vector<float> ranges(x.size());
+  image.CheckMany(batch, x.data(), y.data(), z.data(), x.size(), out.data(), ranges.data());
+  int differ = 0, beyond = 0;
+  int counts[4] = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double range = in_sensor[i].norm();
+    ASSERT_NEAR(ranges[i], range, 1e-4);
+    if (range > 60.0 + 1e-3) {
+      ++beyond;
+      EXPECT_EQ(out[i], Visibility::kUnknown);
+      continue;
+    }
+    if (range < 60.0 - 1e-3) {
+      differ += out[i] != image.Check(in_sensor[i], range, 0.3 + 0.02 * range);
+    }
+    ++counts[static_cast<int>(out[i])];
+  }
+  EXPECT_GT(beyond, 1000);
+  EXPECT_LE(differ, 10) << counts[0] << " " << counts[1] << " " << counts[2] << " " << counts[3];
+  for (const int count : counts) EXPECT_GT(count, 100) << "differ " << differ;  // each occurs
+}
+
 }  // namespace
 }  // namespace core
 }  // namespace multisession_mapper

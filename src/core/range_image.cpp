@@ -228,7 +228,85 @@ Visibility RangeImage::Check(const Eigen::Vector3d& point_sensor, double range,
   if (ring_tangents_.empty()) return Visibility::kUnknown;
   const double tangent = ElevationTangent(point_sensor.x(), point_sensor.y(), point_sensor.z());
   if (!std::isfinite(tangent)) return Visibility::kUnknown;
-  const int column = ColumnOf(point_sensor.x(), point_sensor.y());
+  return Classify(range, tangent, ColumnOf(point_sensor.x(), point_sensor.y()), margin_m);
+}
+
+namespace {
+// CheckMany's pass 1: sensor-frame range, elevation tangent and azimuth column of m points,
+// and whether each is judged at all (within the range, not straight above or below). No
+// branches and no calls (selects only) and restrict pointers, so that GCC vectorises it; that
+// also needs -fno-math-errno and -fno-trapping-math for this file (CMakeLists.txt), which
+// change no result: every operation is the same IEEE one, only errno and FP traps are not kept.
+struct BatchDirections {
+  float r[9];  // R_sensor_frame, row-major
+  float t[3];
+  float max_range_sq;
+  float inv_resolution;
+  int last_column;
+};
+void Directions(const BatchDirections& d, const float* __restrict x, const float* __restrict y,
+                const float* __restrict z, std::size_t m, float* __restrict range,
+                float* __restrict tangent, int* __restrict column, int* __restrict judged) {
+  constexpr float kMinHorizontal = 1e-6f;  // straight above or below: no ring there
+  constexpr float kPi = static_cast<float>(M_PI);
+  for (std::size_t i = 0; i < m; ++i) {
+    const float px = d.r[0] * x[i] + d.r[1] * y[i] + d.r[2] * z[i] + d.t[0];
+    const float py = d.r[3] * x[i] + d.r[4] * y[i] + d.r[5] * z[i] + d.t[1];
+    const float pz = d.r[6] * x[i] + d.r[7] * y[i] + d.r[8] * z[i] + d.t[2];
+    const float horizontal_sq = px * px + py * py;
+    const float range_sq = horizontal_sq + pz * pz;
+    const float horizontal = std::sqrt(horizontal_sq);
+    range[i] = std::sqrt(range_sq);
+    tangent[i] = pz / (horizontal > kMinHorizontal ? horizontal : 1.0f);
+    judged[i] = (horizontal > kMinHorizontal) & (range_sq <= d.max_range_sq);
+    // The azimuth in [0, 2 pi) as ColumnOf gets it from FastAtan2, then its column.
+    const float ax = std::fabs(px), ay = std::fabs(py);
+    const float big = ax > ay ? ax : ay;
+    const float small = ax > ay ? ay : ax;
+    float angle = AtanUnitF(small / (big > 0.0f ? big : 1.0f));
+    angle = ay > ax ? 0.5f * kPi - angle : angle;
+    angle = px < 0.0f ? kPi - angle : angle;
+    angle = py < 0.0f ? 2.0f * kPi - angle : angle;
+    const int c = static_cast<int>(angle * d.inv_resolution);
+    column[i] = c < d.last_column ? c : d.last_column;
+  }
+}
+}  // namespace
+
+void RangeImage::CheckMany(const Batch& batch, const float* x, const float* y, const float* z,
+                           std::size_t n, Visibility* out, float* range_out) const {
+  BatchDirections d;
+  for (int row = 0; row < 3; ++row) {
+    for (int col = 0; col < 3; ++col) d.r[3 * row + col] = batch.R_sensor_frame(row, col);
+    d.t[row] = batch.t_sensor_frame[row];
+  }
+  d.max_range_sq = static_cast<float>(
+      std::min(batch.max_range_m * batch.max_range_m,
+               static_cast<double>(std::numeric_limits<float>::max())));
+  d.inv_resolution = static_cast<float>(inv_azimuth_resolution_);
+  d.last_column = columns_ - 1;
+  // Blocks small enough for the stack and the L1 cache: the directions of a block, then its
+  // look-ups.
+  constexpr std::size_t kBlock = 256;
+  float tangent[kBlock];
+  int column[kBlock];
+  int judged[kBlock];
+  for (std::size_t first = 0; first < n; first += kBlock) {
+    const std::size_t m = std::min(kBlock, n - first);
+    float* ranges = range_out + first;
+    Directions(d, x + first, y + first, z + first, m, ranges, tangent, column, judged);
+    for (std::size_t i = 0; i < m; ++i) {
+      const double range = ranges[i];
+      out[first + i] = judged[i] && !ring_tangents_.empty()
+                           ? Classify(range, tangent[i], column[i],
+                                      batch.margin_base_m + batch.margin_per_m * range)
+                           : Visibility::kUnknown;
+    }
+  }
+}
+
+Visibility RangeImage::Classify(double range, double tangent, int column,
+                                double margin_m) const {
   auto classify = [&](float measured, double margin) {
     if (measured <= 0.0f) return Visibility::kUnknown;
     if (measured > range + margin) return Visibility::kSeenThrough;

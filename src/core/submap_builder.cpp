@@ -151,33 +151,36 @@ void SubmapBuilder::CheckVisibility(const RangeImage& image, const Pose3& T_odom
                                     std::size_t begin, std::size_t end) {
   const InSessionDynamicFilterConfig& c = config_.dynamic_filter;
   const Pose3 T_sensor_submap = T_odom_sensor.inverse() * open->submap.T_map_submap;
-  const Eigen::Vector3d sensor_in_submap = T_sensor_submap.inverse().translation();
-  const double max_range_sq = c.max_check_range_m * c.max_check_range_m;
+  RangeImage::Batch batch;
+  batch.R_sensor_frame = T_sensor_submap.linear().cast<float>();
+  batch.t_sensor_frame = T_sensor_submap.translation().cast<float>();
+  batch.max_range_m = c.max_check_range_m;
+  batch.margin_base_m = c.margin_base_m;
+  batch.margin_per_m = c.margin_per_m;
   const bool past = image_scan < stats_.scans;  // an image from before this scan
-  for (std::size_t i = begin; i < end; ++i) {
-    VoxelPoint& voxel = open->voxels[i];
-    const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
-    if ((p_submap - sensor_in_submap).squaredNorm() > max_range_sq) continue;
-    const Eigen::Vector3d p_sensor = T_sensor_submap * p_submap;
-    const double range = p_sensor.norm();
-    const double margin = c.margin_base_m + c.margin_per_m * range;
-    switch (image.Check(p_sensor, range, margin)) {
-      case Visibility::kSeenThrough:
+  constexpr std::size_t kChunk = 1024;
+  Visibility seen[kChunk];
+  float ranges[kChunk];
+  for (std::size_t first = begin; first < end; first += kChunk) {
+    const std::size_t n = std::min(kChunk, end - first);
+    image.CheckMany(batch, open->centroid_x.data() + first, open->centroid_y.data() + first,
+                    open->centroid_z.data() + first, n, seen, ranges);
+    for (std::size_t k = 0; k < n; ++k) {
+      if (seen[k] != Visibility::kSeenThrough && seen[k] != Visibility::kConsistent) continue;
+      VoxelPoint& voxel = open->voxels[first + k];
+      if (seen[k] == Visibility::kSeenThrough) {
         if (voxel.seen_through < std::numeric_limits<std::uint16_t>::max()) ++voxel.seen_through;
         if (!past) voxel.seen_through_later = true;
-        if (range <= c.near_range_m &&
+        if (ranges[k] <= c.near_range_m &&
             voxel.consecutive_seen_through < std::numeric_limits<std::uint16_t>::max()) {
           ++voxel.consecutive_seen_through;
         }
-        break;
-      case Visibility::kConsistent:
+      } else {
         if (voxel.consistent < std::numeric_limits<std::uint16_t>::max()) ++voxel.consistent;
         voxel.consecutive_seen_through = 0;
         voxel.last_consistent_scan =
             std::max(voxel.last_consistent_scan, static_cast<std::uint32_t>(image_scan));
-        break;
-      default:
-        break;
+      }
     }
   }
 }
@@ -268,6 +271,9 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
             q.key, q.hash, static_cast<std::uint32_t>(current.voxels.size()));
         if (found.second) {
           current.voxels.emplace_back();
+          current.centroid_x.push_back(0.0f);
+          current.centroid_y.push_back(0.0f);
+          current.centroid_z.push_back(0.0f);
           if (current.robust_height) {
             current.heights.emplace_back(q.key.z() * config_.voxel_size_m);
           }
@@ -290,6 +296,17 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
       voxel.nearest_range_sq = pending_[i].range_sq;
       voxel.views.nearest_scan = scan_index;
     }
+  }
+  // The float centroids of the voxels this scan touched (runs of points share a voxel).
+  std::uint32_t updated = VoxelIndexTable::kEmpty;
+  for (const PendingPoint& q : pending_) {
+    if (q.voxel == updated) continue;
+    updated = q.voxel;
+    const VoxelPoint& voxel = current.voxels[q.voxel];
+    const Eigen::Vector3d centroid = voxel.sum / voxel.count;
+    current.centroid_x[q.voxel] = static_cast<float>(centroid.x());
+    current.centroid_y[q.voxel] = static_cast<float>(centroid.y());
+    current.centroid_z[q.voxel] = static_cast<float>(centroid.z());
   }
 
   // The voxels this scan created, against the earlier images; then this scan's image joins

@@ -22,6 +22,17 @@ inline double AtanUnit(double t) {
                              s * (0.0796267560 + s * (-0.0336069497 + s * 0.0068127093))))));
 }
 
+/// AtanUnit in float, for loops the compiler vectorises (4 lanes): within ~2e-7 rad of
+/// atan(t) (the polynomial's error plus float rounding).
+inline float AtanUnitF(float t) {
+  const float s = t * t;
+  return t * (0.9999961128f +
+              s * (-0.3331737241f +
+                   s * (0.1980785709f +
+                        s * (-0.1323350635f +
+                             s * (0.0796267560f + s * (-0.0336069497f + s * 0.0068127093f))))));
+}
+
 /// atan2(y, x) in (-pi, pi], within 2.5e-7 rad of std::atan2; 0 for (0, 0).
 inline double FastAtan2(double y, double x) {
   const double ax = std::abs(x);

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "multisession_mapper/core/status.h"
@@ -83,6 +84,25 @@ class RangeImage {
   /// (the visibility check needs it for its margin too).
   Visibility Check(const Eigen::Vector3d& point_sensor, double range_m, double margin_m) const;
 
+  /// Check() of many points at once, for the in-session check that judges every open submap
+  /// voxel against each check's image (~10^5 per scan). The points are given in another frame
+  /// as arrays of float coordinates (x[i], y[i], z[i]); `batch` maps them into the scan's
+  /// sensor frame and gives each its margin. out[i] is what Check(p_i, range_i, margin_i)
+  /// returns, with p_i, range_i and the direction computed in float (directions within ~1e-6
+  /// rad of the double ones, so only points on a bin's edge can land in the next bin); points
+  /// farther than batch.max_range_m, or straight above or below the sensor, get kUnknown.
+  /// range_out[i] is range_i. The directions are computed over blocks in loops the compiler
+  /// vectorises; only the image look-ups go point by point.
+  struct Batch {
+    Eigen::Matrix3f R_sensor_frame = Eigen::Matrix3f::Identity();
+    Eigen::Vector3f t_sensor_frame = Eigen::Vector3f::Zero();
+    double max_range_m = std::numeric_limits<double>::infinity();
+    double margin_base_m = 0.0;    ///< margin_i = margin_base_m + margin_per_m * range_i
+    double margin_per_m = 0.0;
+  };
+  void CheckMany(const Batch& batch, const float* x, const float* y, const float* z,
+                 std::size_t n, Visibility* out, float* range_out) const;
+
   /// Index of the first ring whose elevation tangent is >= `tangent` (std::lower_bound over
   /// the tangents of ring_elevations_rad()), from a table over the tangent then a step or
   /// two: the binary search was a tenth of the visibility check's time. `tangent` finite.
@@ -99,6 +119,8 @@ class RangeImage {
   int RingOfTangent(double tangent, int above) const;
   /// Azimuth column of a direction (x, y) in the sensor frame.
   int ColumnOf(double x, double y) const;
+  /// Check() once the point's range, elevation tangent (finite) and column are known.
+  Visibility Classify(double range, double tangent, int column, double margin_m) const;
   /// Measured range at a pixel; +inf for free space without return (see config), 0 unknown.
   float MeasuredRange(int ring, int column, double point_range_m) const;
   /// |d range / d elevation| of the surface measured around a pixel [m/rad]: the smaller of

@@ -236,6 +236,10 @@ class SubmapBuilder {
     /// Voxels in a flat array (the visibility checks sweep all of them, every check) and
     /// their index by voxel key.
     std::vector<VoxelPoint> voxels;
+    /// Each voxel's centroid (sum / count) in float, one array per axis, kept up to date by
+    /// AddScan: the checks read these contiguous arrays (RangeImage::CheckMany) instead of
+    /// dividing each voxel's double sums at every check.
+    std::vector<float> centroid_x, centroid_y, centroid_z;
     /// The heights of each voxel's returns (SubmapBuilderConfig::robust_height; empty when
     /// off), beside `voxels` rather than in them: the checks sweep `voxels` and need none.
     std::vector<VoxelHeightHistogram> heights;
