@@ -221,12 +221,37 @@ TEST(RangeImage, ConfigValidation) {
   EXPECT_FALSE(c.Validate().ok());
 }
 
+// GroundAndWall with a wall segment 6 m away at azimuths 30-70 deg only (positive y), so that
+// the scene is not symmetric about the x axis: a wrong azimuth sign changes the answers.
+LidarScan GroundAndWallAndSideWall() {
+  LidarScan scan = GroundAndWall(true);
+  for (LidarPoint& p : scan.points) {
+    const Eigen::Vector3d q = p.position_m.cast<double>();
+    const double azimuth_deg = std::atan2(q.y(), q.x()) * 180.0 / M_PI;
+    const double elevation_deg = std::atan2(q.z(), q.head<2>().norm()) * 180.0 / M_PI;
+    if (azimuth_deg >= 30.0 && azimuth_deg <= 70.0 && elevation_deg >= -5.0) {
+      p.position_m = (q.normalized() * 6.0).cast<float>();
+    }
+  }
+  return scan;
+}
+
+RangeImage::Batch BatchFor(const Eigen::Isometry3d& T_sensor_frame, double max_range_m) {
+  RangeImage::Batch batch;
+  batch.R_sensor_frame = T_sensor_frame.linear().cast<float>();
+  batch.t_sensor_frame = T_sensor_frame.translation().cast<float>();
+  batch.max_range_m = max_range_m;
+  batch.margin_base_m = 0.3;
+  batch.margin_per_m = 0.02;
+  return batch;
+}
+
 TEST(RangeImage, CheckManyAgreesWithCheck) {
   // Points all around the sensor at 2-70 m, given in a frame rotated and shifted against the
   // sensor's (as submap voxels are): CheckMany must judge them as Check does, apart from the
   // few whose direction lies on a bin's edge (CheckMany computes directions in float), and
   // leave those beyond max_range_m unknown.
-  const RangeImage image(GroundAndWall(true), RangeImageConfig());
+  const RangeImage image(GroundAndWallAndSideWall(), RangeImageConfig());
   Eigen::Isometry3d T_sensor_frame = Eigen::Isometry3d::Identity();
   T_sensor_frame.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
                             Eigen::AngleAxisd(0.01, Eigen::Vector3d::UnitX()).toRotationMatrix();
@@ -247,16 +272,11 @@ TEST(RangeImage, CheckManyAgreesWithCheck) {
     z.push_back(p_frame.z());
     in_sensor.push_back(T_sensor_frame * p_frame.cast<double>());
   }
-  RangeImage::Batch batch;
-  batch.R_sensor_frame = T_sensor_frame.linear().cast<float>();
-  batch.t_sensor_frame = T_sensor_frame.translation().cast<float>();
-  batch.max_range_m = 60.0;
-  batch.margin_base_m = 0.3;
-  batch.margin_per_m = 0.02;
   std::vector<Visibility> out(x.size());
   std::vector<float> ranges(x.size());
-  image.CheckMany(batch, x.data(), y.data(), z.data(), x.size(), out.data(), ranges.data());
-  int differ = 0, beyond = 0;
+  image.CheckMany(BatchFor(T_sensor_frame, 60.0), x.data(), y.data(), z.data(), x.size(),
+                  out.data(), ranges.data());
+  int differ = 0, beyond = 0, side_wall = 0;
   int counts[4] = {0, 0, 0, 0};
   for (std::size_t i = 0; i < x.size(); ++i) {
     const double range = in_sensor[i].norm();
@@ -267,13 +287,59 @@ TEST(RangeImage, CheckManyAgreesWithCheck) {
       continue;
     }
     if (range < 60.0 - 1e-3) {
-      differ += out[i] != image.Check(in_sensor[i], range, 0.3 + 0.02 * range);
+      const Visibility expected = image.Check(in_sensor[i], range, 0.3 + 0.02 * range);
+      differ += out[i] != expected;
+      // Behind the side wall (positive y only): occluded there, not in the mirrored directions.
+      const double azimuth_deg = std::atan2(in_sensor[i].y(), in_sensor[i].x()) * 180.0 / M_PI;
+      side_wall += expected == Visibility::kOccluded && azimuth_deg > 32.0 &&
+                   azimuth_deg < 68.0 && range > 8.0;
     }
     ++counts[static_cast<int>(out[i])];
   }
   EXPECT_GT(beyond, 1000);
+  EXPECT_GT(side_wall, 300);  // the asymmetric part of the scene is exercised
   EXPECT_LE(differ, 10) << counts[0] << " " << counts[1] << " " << counts[2] << " " << counts[3];
   for (const int count : counts) EXPECT_GT(count, 100) << "differ " << differ;  // each occurs
+}
+
+TEST(RangeImage, CheckManyEdgeCases) {
+  const RangeImage image(GroundAndWall(true), RangeImageConfig());
+  const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+  // Straight above the sensor (no ring there), on the wall ahead, and 70 m ahead at +1 deg
+  // (behind the wall: occluded).
+  const double wall = 15.0 / std::cos(1.0 * M_PI / 180.0);
+  const Eigen::Vector3d points[] = {Eigen::Vector3d(0.0, 0.0, 5.0), OnBeam(wall, 1.0, 0.1),
+                                    OnBeam(70.0, 1.0, 0.1)};
+  std::vector<float> x, y, z;
+  for (const Eigen::Vector3d& p : points) {
+    x.push_back(static_cast<float>(p.x()));
+    y.push_back(static_cast<float>(p.y()));
+    z.push_back(static_cast<float>(p.z()));
+  }
+  Visibility out[3];
+  float ranges[3];
+  // Without a range limit (the default: infinite) every point is judged as Check judges it.
+  RangeImage::Batch unlimited = BatchFor(identity, 60.0);
+  unlimited.max_range_m = RangeImage::Batch().max_range_m;
+  ASSERT_FALSE(std::isfinite(unlimited.max_range_m));
+  image.CheckMany(unlimited, x.data(), y.data(), z.data(), 3, out, ranges);
+  EXPECT_EQ(out[0], Visibility::kUnknown);
+  EXPECT_EQ(out[1], Visibility::kConsistent);
+  EXPECT_EQ(out[2], Visibility::kOccluded);
+  EXPECT_EQ(image.Check(points[2], 70.0, 0.3 + 0.02 * 70.0), Visibility::kOccluded);
+  // With a 60 m limit the far point is not judged.
+  image.CheckMany(BatchFor(identity, 60.0), x.data(), y.data(), z.data(), 3, out, ranges);
+  EXPECT_EQ(out[1], Visibility::kConsistent);
+  EXPECT_EQ(out[2], Visibility::kUnknown);
+  // No points: nothing is written.
+  out[0] = Visibility::kSeenThrough;
+  image.CheckMany(unlimited, x.data(), y.data(), z.data(), 0, out, ranges);
+  EXPECT_EQ(out[0], Visibility::kSeenThrough);
+  // An image without rings (an empty scan) knows nothing.
+  const RangeImage empty{LidarScan(), RangeImageConfig()};
+  ASSERT_EQ(empty.num_rings(), 0u);
+  empty.CheckMany(unlimited, x.data(), y.data(), z.data(), 3, out, ranges);
+  for (const Visibility v : out) EXPECT_EQ(v, Visibility::kUnknown);
 }
 
 }  // namespace

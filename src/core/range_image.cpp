@@ -259,7 +259,8 @@ void Directions(const BatchDirections& d, const float* __restrict x, const float
     range[i] = std::sqrt(range_sq);
     tangent[i] = pz / (horizontal > kMinHorizontal ? horizontal : 1.0f);
     judged[i] = (horizontal > kMinHorizontal) & (range_sq <= d.max_range_sq);
-    // The azimuth in [0, 2 pi) as ColumnOf gets it from FastAtan2, then its column.
+    // The azimuth in [0, 2 pi] as ColumnOf gets it from FastAtan2 (in float, just below 2 pi
+    // can round to 2 pi: the clamp to the last column takes it), then its column.
     const float ax = std::fabs(px), ay = std::fabs(py);
     const float big = ax > ay ? ax : ay;
     const float small = ax > ay ? ay : ax;
@@ -267,6 +268,7 @@ void Directions(const BatchDirections& d, const float* __restrict x, const float
     angle = ay > ax ? 0.5f * kPi - angle : angle;
     angle = px < 0.0f ? kPi - angle : angle;
     angle = py < 0.0f ? 2.0f * kPi - angle : angle;
+    angle = angle < 7.0f ? angle : 0.0f;  // a NaN (never judged) must not reach the cast
     const int c = static_cast<int>(angle * d.inv_resolution);
     column[i] = c < d.last_column ? c : d.last_column;
   }

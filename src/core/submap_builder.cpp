@@ -436,6 +436,9 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
   }
   open->voxels = {};
   open->heights = {};
+  open->centroid_x = {};
+  open->centroid_y = {};
+  open->centroid_z = {};
   open->voxel_index.Release();
   ++stats_.submaps_finished;
   finished_.push_back(std::move(submap));

@@ -4,6 +4,7 @@
 // range-image methods such as Removert, Kim & Kim, IROS 2020).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -84,15 +85,7 @@ class RangeImage {
   /// (the visibility check needs it for its margin too).
   Visibility Check(const Eigen::Vector3d& point_sensor, double range_m, double margin_m) const;
 
-  /// Check() of many points at once, for the in-session check that judges every open submap
-  /// voxel against each check's image (~10^5 per scan). The points are given in another frame
-  /// as arrays of float coordinates (x[i], y[i], z[i]); `batch` maps them into the scan's
-  /// sensor frame and gives each its margin. out[i] is what Check(p_i, range_i, margin_i)
-  /// returns, with p_i, range_i and the direction computed in float (directions within ~1e-6
-  /// rad of the double ones, so only points on a bin's edge can land in the next bin); points
-  /// farther than batch.max_range_m, or straight above or below the sensor, get kUnknown.
-  /// range_out[i] is range_i. The directions are computed over blocks in loops the compiler
-  /// vectorises; only the image look-ups go point by point.
+  /// CheckMany's transform into the sensor frame, range limit and margins.
   struct Batch {
     Eigen::Matrix3f R_sensor_frame = Eigen::Matrix3f::Identity();
     Eigen::Vector3f t_sensor_frame = Eigen::Vector3f::Zero();
@@ -100,6 +93,16 @@ class RangeImage {
     double margin_base_m = 0.0;    ///< margin_i = margin_base_m + margin_per_m * range_i
     double margin_per_m = 0.0;
   };
+  /// Check() of many points at once, for the in-session check that judges every open submap
+  /// voxel against each check's image (~10^5 per scan). The points are given in another frame
+  /// as arrays of float coordinates (x[i], y[i], z[i]); `batch` maps them into the scan's
+  /// sensor frame and gives each its margin. out[i] is what Check(p_i, range_i, margin_i)
+  /// returns, with p_i, range_i and the direction computed in float (directions within ~1e-6
+  /// rad of the double ones, so only points on a bin's edge can land in the next bin); points
+  /// farther than batch.max_range_m, or within 1e-6 m of the vertical through the sensor (1e-9
+  /// m in Check), get kUnknown; range_out[i] is range_i. `out` and `range_out` hold n entries
+  /// and must not overlap the inputs. The directions are computed over blocks in loops the
+  /// compiler vectorises; only the image look-ups go point by point.
   void CheckMany(const Batch& batch, const float* x, const float* y, const float* z,
                  std::size_t n, Visibility* out, float* range_out) const;
 

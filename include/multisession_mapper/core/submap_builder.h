@@ -233,8 +233,8 @@ class SubmapBuilder {
   };
   struct OpenSubmap {
     Submap submap;
-    /// Voxels in a flat array (the visibility checks sweep all of them, every check) and
-    /// their index by voxel key.
+    /// Voxels in a flat array and their index by voxel key (the visibility checks sweep the
+    /// centroid arrays below and touch a voxel only when a check counts for it).
     std::vector<VoxelPoint> voxels;
     /// Each voxel's centroid (sum / count) in float, one array per axis, kept up to date by
     /// AddScan: the checks read these contiguous arrays (RangeImage::CheckMany) instead of
