@@ -241,7 +241,7 @@ class SubmapBuilder {
     /// dividing each voxel's double sums at every check.
     std::vector<float> centroid_x, centroid_y, centroid_z;
     /// The heights of each voxel's returns (SubmapBuilderConfig::robust_height; empty when
-    /// off), beside `voxels` rather than in them: the checks sweep `voxels` and need none.
+    /// off), beside `voxels` rather than in them: the checks need none.
     std::vector<VoxelHeightHistogram> heights;
     /// SubmapBuilderConfig::robust_height when the submap started (a change applies from the
     /// next submap on).
