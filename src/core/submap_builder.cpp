@@ -303,7 +303,7 @@ void SubmapBuilder::AddScan(const LidarScan& deskewed_scan, const Pose3& T_odom_
     if (q.voxel == updated) continue;
     updated = q.voxel;
     const VoxelPoint& voxel = current.voxels[q.voxel];
-    const Eigen::Vector3d centroid = voxel.sum / voxel.count;
+    const Eigen::Vector3d centroid = voxel.centroid();
     current.centroid_x[q.voxel] = static_cast<float>(centroid.x());
     current.centroid_y[q.voxel] = static_cast<float>(centroid.y());
     current.centroid_z[q.voxel] = static_cast<float>(centroid.z());
@@ -399,7 +399,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     next.clear();
     for (const Source& u : frontier) {
       const VoxelPoint& from = open->voxels[u.voxel];
-      const VoxelKey key = ToVoxelKey(from.sum / from.count, config_.voxel_size_m);
+      const VoxelKey key = ToVoxelKey(from.centroid(), config_.voxel_size_m);
       for (int dx = -1; dx <= 1; ++dx) {
         for (int dy = -1; dy <= 1; ++dy) {
           for (int dz = -1; dz <= 1; ++dz) {
@@ -454,7 +454,7 @@ void SubmapBuilder::DropSeenThroughGroups(const OpenSubmap& open,
   for (std::size_t i = 0; i < open.voxels.size(); ++i) {
     if ((*dynamic)[i]) continue;
     const VoxelPoint& voxel = open.voxels[i];
-    const Eigen::Vector3d p_submap = voxel.sum / voxel.count;
+    const Eigen::Vector3d p_submap = voxel.centroid();
     GroupVoxel v;
     v.key = ToVoxelKey(p_submap, config_.voxel_size_m);
     v.point_up = open.submap.T_map_submap * p_submap;  // the odometry frame: z up
@@ -472,7 +472,7 @@ void SubmapBuilder::DropSeenThroughGroups(const OpenSubmap& open,
 
 Eigen::Vector3d SubmapBuilder::StoredPoint(const OpenSubmap& open, std::size_t i) const {
   const VoxelPoint& voxel = open.voxels[i];
-  Eigen::Vector3d point = voxel.sum / voxel.count;
+  Eigen::Vector3d point = voxel.centroid();
   if (open.robust_height) point.z() = open.heights[i].RobustHeight(point.z());
   return point;
 }
@@ -484,7 +484,7 @@ void SubmapBuilder::DropResidueUnderRemoved(const OpenSubmap& open,
   for (std::size_t i = 0; i < open.voxels.size(); ++i) {
     if ((*dynamic)[i]) continue;
     const VoxelPoint& voxel = open.voxels[i];
-    const VoxelKey key = ToVoxelKey(voxel.sum / voxel.count, config_.voxel_size_m);
+    const VoxelKey key = ToVoxelKey(voxel.centroid(), config_.voxel_size_m);
     const std::uint32_t below = KeptGroundBelow(open, *dynamic, key);
     if (below == VoxelIndexTable::kEmpty) continue;
     // Ground whose returns straddle the layers' boundary fills both voxels at about one height.

@@ -12,26 +12,22 @@ namespace core {
 
 /// atan(t) for t in [-1, 1]: t * P(t^2), P of degree 6 fitted to atan(t)/t on [0, 1] by
 /// iteratively reweighted least squares towards the minimax error (scripted in numpy; the
-/// coefficients are ours, not a published table).
-inline double AtanUnit(double t) {
-  const double s = t * t;
-  return t * (0.9999961128 +
-              s * (-0.3331737241 +
-                   s * (0.1980785709 +
-                        s * (-0.1323350635 +
-                             s * (0.0796267560 + s * (-0.0336069497 + s * 0.0068127093))))));
+/// coefficients are ours, not a published table). In double (AtanUnit) and in float
+/// (AtanUnitF, for loops the compiler vectorises, 4 lanes: within ~3.5e-7 rad of atan(t), the
+/// polynomial's error plus float rounding); each coefficient converted to float is the
+/// nearest float to its decimal.
+template <typename T>
+inline T AtanUnitOf(T t) {
+  const T s = t * t;
+  return t * (T(0.9999961128) +
+              s * (T(-0.3331737241) +
+                   s * (T(0.1980785709) +
+                        s * (T(-0.1323350635) +
+                             s * (T(0.0796267560) +
+                                  s * (T(-0.0336069497) + s * T(0.0068127093)))))));
 }
-
-/// AtanUnit in float, for loops the compiler vectorises (4 lanes): within ~3.5e-7 rad of
-/// atan(t) (the polynomial's error plus float rounding).
-inline float AtanUnitF(float t) {
-  const float s = t * t;
-  return t * (0.9999961128f +
-              s * (-0.3331737241f +
-                   s * (0.1980785709f +
-                        s * (-0.1323350635f +
-                             s * (0.0796267560f + s * (-0.0336069497f + s * 0.0068127093f))))));
-}
+inline double AtanUnit(double t) { return AtanUnitOf(t); }
+inline float AtanUnitF(float t) { return AtanUnitOf(t); }
 
 /// atan2(y, x) in (-pi, pi], within 2.5e-7 rad of std::atan2; 0 for (0, 0).
 inline double FastAtan2(double y, double x) {

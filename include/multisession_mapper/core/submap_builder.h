@@ -208,6 +208,7 @@ class SubmapBuilder {
   struct VoxelPoint {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     std::uint32_t count = 0;
+    Eigen::Vector3d centroid() const { return sum / count; }  ///< count >= 1
     std::uint16_t seen_through = 0;
     std::uint16_t consistent = 0;
     std::uint16_t consecutive_seen_through = 0;  ///< since the last consistent check
