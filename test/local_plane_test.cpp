@@ -105,6 +105,38 @@ TEST(ScanNormalsTest, SurfaceNormalsFromNeighbouringRingsOnly) {
   }
 }
 
+// The neighbour columns wrap around azimuth 0: a point in the first column whose only
+// neighbours lie just below 360 deg (and one in the last column with neighbours just above
+// 0 deg) still gets its surface's normal. Three rings on a wall at x = 10 m, in three columns
+// each: the query's and the two reached across the wrap (5 and 10 bins away).
+TEST(ScanNormalsTest, NeighbourColumnsWrapAroundAzimuthZero) {
+  const ScanNormalConfig config;
+  const double bin_rad = 2.0 * M_PI / config.azimuth_bins;
+  for (const int direction : {-1, 1}) {
+    // Column centres (in bins from azimuth 0): the query's, then its neighbours'.
+    const double query_bins = direction < 0 ? 0.5 : -0.5;
+    LidarScan scan;
+    scan.has_ring = true;
+    for (int ring = 0; ring < 3; ++ring) {
+      const double elevation = (ring - 1) * 2.0 * M_PI / 180.0;
+      for (const int step : {0, 1, 2}) {
+        const double azimuth =
+            (query_bins + direction * step * config.column_step) * bin_rad;
+        LidarPoint p;
+        p.position_m = Eigen::Vector3f(10.0f, static_cast<float>(10.0 * std::tan(azimuth)),
+                                       static_cast<float>(10.0 * std::tan(elevation)));
+        p.ring = static_cast<std::uint16_t>(ring);
+        scan.points.push_back(p);
+      }
+    }
+    const std::vector<LidarPoint> query = {scan.points[3]};  // ring 1, the query's column
+    const PointVector normals = EstimateScanNormals(scan, query, config);
+    ASSERT_EQ(normals.size(), 1u);
+    ASSERT_FALSE(normals[0].isZero(0.0)) << "direction " << direction;
+    EXPECT_GT(std::abs(normals[0].x()), std::cos(1.0 * M_PI / 180.0)) << "direction " << direction;
+  }
+}
+
 TEST(ScanNormalsTest, DropHighPointsOffWallsKeepsGroundWallsAndPointsWithoutNormal) {
   // Sensor frame: ground below, a wall, a crown's leaves and a roof above, a point without
   // a normal above.
