@@ -605,6 +605,84 @@ TEST_F(InterSessionMatcherTest, ASubmapWhoseTwoRegistrationsDisagreeIsPlacedByIt
   ExpectEveryAcceptedLoopTrue(r);
 }
 
+TEST_F(InterSessionMatcherTest, ASubmapWhoseLoopsAllDisagreeWithItsNeighboursIsWithdrawn) {
+  // A submap whose loops agree with each other but place it apart from its neighbours' loops
+  // (campus seed 1 s01/20: two loops in one wrong minimum, 2 deg off). Emulated by tilting
+  // the current submap's own pose in the session frame by 0.018 rad: its registrations stay
+  // as they were, so its loops imply a map <- session transform tilted by as much, within the
+  // group bounds (0.02 rad + 0.0002 rad/m) but beyond the neighbour bounds (0.006 rad +
+  // 0.0002 rad/m: 0.014 rad at 40 m).
+  const InterSessionMatchResult reference = MatchDefault(data_->history);
+  ASSERT_TRUE(reference.aligned);
+  // The tilted submap: one with loops of the votes (kind inter; the rule runs before sequence
+  // guidance) and two such submaps within 2 ids (45 m of driving: 20 m per submap).
+  std::set<std::uint32_t> voted;
+  for (const LoopRecord& rec : reference.records) {
+    if (rec.kind == LoopKind::kInter && rec.status == LoopStatus::kAccepted) {
+      voted.insert(rec.current_submap);
+    }
+  }
+  std::uint32_t tilted = 1000;
+  std::vector<std::uint32_t> neighbours;
+  for (std::uint32_t c : voted) {
+    neighbours.clear();
+    for (std::uint32_t n : voted) {
+      if (n != c && (n > c ? n - c : c - n) <= 2) neighbours.push_back(n);
+    }
+    if (neighbours.size() >= 2) {
+      tilted = c;
+      break;
+    }
+  }
+  ASSERT_LT(tilted, 1000u) << "no voted submap with two voted neighbours";
+  SessionResult current = data_->current;
+  current.submaps[tilted].T_map_submap.linear() =
+      current.submaps[tilted].T_map_submap.linear() *
+      Eigen::AngleAxisd(0.018, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const auto match_session = [&](const SessionResult& session, double neighbour_path_m) {
+    InterSessionMatcherConfig config;
+    config.consistency.neighbour_path_m = neighbour_path_m;
+    return InterSessionMatcher::Create(config)
+        .value()
+        .Match(data_->history, session, *data_->recognizer)
+        .value();
+  };
+  const auto match = [&](double neighbour_path_m) {
+    return match_session(current, neighbour_path_m);
+  };
+  const auto inter_loops_of_tilted = [&](const InterSessionMatchResult& r, bool accepted) {
+    int n = 0;
+    for (const LoopRecord& rec : r.records) {
+      if (rec.current_submap != tilted) continue;
+      std::cout << "  cur " << rec.current_submap << " -> " << rec.history_submap << " kind "
+                << static_cast<int>(rec.kind) << " pose " << rec.has_pose << " status "
+                << static_cast<int>(rec.status) << ": " << rec.reason << std::endl;
+      if (rec.kind != LoopKind::kInter || !rec.has_pose) continue;
+      if (accepted) {
+        n += rec.status == LoopStatus::kAccepted;
+      } else {
+        n += rec.status == LoopStatus::kRejected &&
+             rec.reason.find("apart from every loop of its neighbours") != std::string::npos;
+      }
+    }
+    return n;
+  };
+  // Without the neighbour rule, the group bounds accept the tilted submap's loops.
+  const InterSessionMatchResult off = match(0.0);
+  ASSERT_TRUE(off.aligned);
+  ASSERT_GE(inter_loops_of_tilted(off, true), 1) << "the group bounds already refuse the tilt";
+  // With it, every one of them is withdrawn; the other submaps keep theirs.
+  const InterSessionMatchResult on = match(45.0);
+  ASSERT_TRUE(on.aligned);
+  EXPECT_GE(inter_loops_of_tilted(on, false), 1);
+  EXPECT_EQ(inter_loops_of_tilted(on, true), 0);
+  std::set<std::uint32_t> placed;
+  for (const InterSessionLoop& loop : on.loops) placed.insert(loop.current_submap);
+  for (std::uint32_t n : neighbours) EXPECT_TRUE(placed.count(n)) << "neighbour " << n;
+  // The untilted session loses no loop to the rule.
+  EXPECT_EQ(match_session(data_->current, 0.0).loops.size(), reference.loops.size());
+}
+
 TEST(InterSessionMatcherConfigTest, ValidatesFields) {
   EXPECT_TRUE(InterSessionMatcherConfig().Validate().ok());
   InterSessionMatcherConfig c;
@@ -629,6 +707,11 @@ TEST(InterSessionMatcherConfigTest, ValidatesFields) {
   EXPECT_TRUE(c.Validate().ok());
   c.consistency.same_submap_translation_m = -0.1;
   EXPECT_FALSE(c.Validate().ok());
+  c = InterSessionMatcherConfig();
+  c.consistency.neighbour_path_m = -1.0;
+  EXPECT_FALSE(c.Validate().ok());
+  c.consistency.neighbour_path_m = 0.0;  // off
+  EXPECT_TRUE(c.Validate().ok());
   c = InterSessionMatcherConfig();
   c.sequence.max_gap_submaps = -1;
   EXPECT_FALSE(c.Validate().ok());

@@ -73,6 +73,16 @@ bool AgreeUpToDrift(const Registered& a, const Registered& b,
                          config.secondary_rotation_per_m * path_m);
 }
 
+// Agreement of loops of two neighbouring submaps (see neighbour_path_m): the same-submap
+// bounds plus the sequence bounds' growth with the distance between the two origins.
+bool AgreeAsNeighbours(const Registered& a, const Registered& b,
+                       const SequenceConsistencyConfig& config) {
+  const double separation_m = (a.origin - b.origin).norm();
+  return AgreeWithin(a, b,
+                     config.same_submap_translation_m + config.max_translation_per_m * separation_m,
+                     config.same_submap_rotation_rad + config.max_rotation_per_m * separation_m);
+}
+
 // Single-linkage groups (connected components of Agree) of the loops `members` of `all`.
 std::vector<std::vector<std::size_t>> LinkedGroups(
     const std::vector<Registered, Eigen::aligned_allocator<Registered>>& all,
@@ -126,6 +136,9 @@ Status SequenceConsistencyConfig::Validate() const {
     return Status::Error(
         "sequence_consistency same_submap_translation_m / same_submap_rotation_rad must be "
         ">= 0, both 0 (off) or both > 0");
+  }
+  if (!(neighbour_path_m >= 0.0) || !std::isfinite(neighbour_path_m)) {
+    return Status::Error("sequence_consistency.neighbour_path_m must be >= 0 (0: off)");
   }
   return Status::Ok();
 }
@@ -645,38 +658,95 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
   }
 }
 
+// The current submaps (index -> why) none of whose accepted loops agrees with any loop of its
+// neighbours along the session, while loops of two of those neighbours agree with each other
+// (see neighbour_path_m). `accepted`: every accepted loop so far.
+std::map<std::size_t, std::string> SubmapsApartFromNeighbours(
+    const std::vector<const Registered*>& accepted, const SequenceConsistencyConfig& consistency,
+    const SessionResult& current) {
+  std::map<std::size_t, std::string> apart;
+  if (consistency.neighbour_path_m <= 0.0 || consistency.same_submap_translation_m <= 0.0) {
+    return apart;
+  }
+  std::map<std::size_t, std::vector<const Registered*>> by_submap;
+  for (const Registered* r : accepted) by_submap[r->current].push_back(r);
+  const auto any_agree = [&](const std::vector<const Registered*>& a,
+                             const std::vector<const Registered*>& b) {
+    for (const Registered* x : a) {
+      for (const Registered* y : b) {
+        if (AgreeAsNeighbours(*x, *y, consistency)) return true;
+      }
+    }
+    return false;
+  };
+  for (const auto& [c, loops] : by_submap) {
+    std::vector<std::size_t> neighbours;
+    for (const auto& [other, other_loops] : by_submap) {
+      if (other != c &&
+          std::abs(other_loops.front()->path_m - loops.front()->path_m) <=
+              consistency.neighbour_path_m) {
+        neighbours.push_back(other);
+      }
+    }
+    bool agrees = false;
+    for (std::size_t n : neighbours) agrees = agrees || any_agree(loops, by_submap.at(n));
+    if (agrees) continue;
+    bool majority = false;
+    std::string ids;
+    for (std::size_t i = 0; i < neighbours.size(); ++i) {
+      ids += (i == 0 ? "" : ", ") + std::to_string(current.submaps[neighbours[i]].id);
+      for (std::size_t j = i + 1; j < neighbours.size(); ++j) {
+        majority = majority || any_agree(by_submap.at(neighbours[i]), by_submap.at(neighbours[j]));
+      }
+    }
+    if (!majority) continue;
+    apart[c] = "withdrawn: the loops of submap " + std::to_string(current.submaps[c].id) +
+               " place it apart from every loop of its neighbours (submaps " + ids +
+               "), which agree with each other; its neighbours' loops place it";
+  }
+  return apart;
+}
+
 // A submap whose guided registration disagreed with its own accepted loop holds two
 // registrations that cannot both be right, and nothing says which: every loop of it is
 // withdrawn and the groups are decided again without them; sequence guidance then places the
 // submap by its neighbours' loops, which arbitrate. (Campus seed 2, s01/25: its first loop,
 // to s00/42, was 1.5 deg off in tilt and passed the consistency bounds; the guided one to
-// s00/43, 0.017 m / 0.13 deg from the truth, was the one rejected.) The guided loops of the
-// other submaps stay when their reference is still accepted.
+// s00/43, 0.017 m / 0.13 deg from the truth, was the one rejected.) So are the submaps whose
+// loops all place them apart from their neighbours' (SubmapsApartFromNeighbours). The guided
+// loops of the other submaps stay when their reference is still accepted.
 void WithdrawSuspectSubmaps(const SequenceConsistencyConfig& consistency,
                             const SessionResult& current, std::size_t dependent_before,
                             const RegisteredLoops& guided_accepted,
                             const std::map<std::size_t, const Registered*>& reference_of_record,
                             RegisteredLoops* registered, std::vector<bool>* in_group,
                             InterSessionMatchResult* result) {
-  // The guided registrations that disagreed with their reference (the submap's own loop).
-  std::map<std::size_t, std::int64_t> suspect;  // current submap -> a disagreeing history id
+  // current submap -> why its loops are withdrawn. First the submaps whose guided
+  // registrations disagreed with their reference (the submap's own loop).
+  std::map<std::size_t, std::string> suspect;
   for (std::size_t d = dependent_before; d < result->dependent.size(); ++d) {
     const std::size_t record = result->dependent[d].record;
-    suspect.emplace(reference_of_record.at(record)->current,
-                    result->records[record].history_submap);
+    const std::size_t c = reference_of_record.at(record)->current;
+    suspect.emplace(c, "withdrawn: the registrations of submap " +
+                           std::to_string(current.submaps[c].id) + " disagree (history submap " +
+                           std::to_string(result->records[record].history_submap) +
+                           "); its neighbours' loops place it");
+  }
+  std::vector<const Registered*> accepted;
+  for (std::size_t j = 0; j < registered->size(); ++j) {
+    if ((*in_group)[j]) accepted.push_back(&(*registered)[j]);
+  }
+  for (const Registered& r : guided_accepted) accepted.push_back(&r);
+  for (auto& [c, why] : SubmapsApartFromNeighbours(accepted, consistency, current)) {
+    suspect.emplace(c, std::move(why));
   }
   if (suspect.empty()) return;
-  const auto reason_for = [&](std::size_t c) {
-    return "withdrawn: the registrations of submap " + std::to_string(current.submaps[c].id) +
-           " disagree (history submap " + std::to_string(suspect.at(c)) +
-           "); its neighbours' loops place it";
-  };
   RegisteredLoops kept;
   for (const Registered& r : *registered) {
     if (suspect.count(r.current)) {
       LoopRecord& record = result->records[r.record];
       record.status = LoopStatus::kRejected;
-      record.reason = reason_for(r.current);
+      record.reason = suspect.at(r.current);
     } else {
       kept.push_back(r);
     }
@@ -697,7 +767,7 @@ void WithdrawSuspectSubmaps(const SequenceConsistencyConfig& consistency,
     LoopRecord& record = result->records[r.record];
     if (suspect.count(r.current)) {
       record.status = LoopStatus::kRejected;
-      record.reason = reason_for(r.current);
+      record.reason = suspect.at(r.current);
     } else if (accepted_records.count(reference_record_of.at(r.record))) {
       result->loops.push_back(r.loop);
     } else {

@@ -165,6 +165,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
        &m.matching.consistency.same_submap_translation_m},
       {"inter_session", "consistency_same_submap_rotation_rad",
        &m.matching.consistency.same_submap_rotation_rad},
+      {"inter_session", "consistency_neighbour_path_m",
+       &m.matching.consistency.neighbour_path_m},
       {"inter_session", "sequence_max_gap_submaps", &m.matching.sequence.max_gap_submaps},
       {"inter_session", "sequence_chain", &m.matching.sequence.chain},
       {"inter_session", "sequence_max_candidates", &m.matching.sequence.max_candidates},

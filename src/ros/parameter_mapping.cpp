@@ -125,6 +125,7 @@ namespace ros_params {
     g.matching.consistency.same_submap_translation_m)                                         \
   F(inter_session_consistency_same_submap_rotation_rad,                                       \
     g.matching.consistency.same_submap_rotation_rad)                                          \
+  F(inter_session_consistency_neighbour_path_m, g.matching.consistency.neighbour_path_m)      \
   F(inter_session_sequence_max_gap_submaps, g.matching.sequence.max_gap_submaps)              \
   F(inter_session_sequence_chain, g.matching.sequence.chain)                                  \
   F(inter_session_sequence_max_candidates, g.matching.sequence.max_candidates)                \
