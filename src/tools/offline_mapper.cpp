@@ -13,6 +13,7 @@
 #include <ctime>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@
 #include "multisession_mapper/core/pipeline_config.h"
 #include "multisession_mapper/core/odometry_worker.h"
 #include "multisession_mapper/core/place_recognizer.h"
+#include "multisession_mapper/core/serial_worker.h"
 #include "multisession_mapper/core/session_mapper.h"
 #include "multisession_mapper/core/timing_record.h"
 #include "multisession_mapper/ros/bag_scan_reader.h"
@@ -181,6 +183,21 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
                    status.message().c_str());
     }
   };
+  // The place descriptors are computed on a thread of their own (SerialWorker: in scan order,
+  // the same descriptors and queries as in place), because this thread, which builds the
+  // submaps, is the critical path of the run. Their failures are reported from here.
+  // (Declared before the worker, whose destructor may still run tasks that use them.)
+  std::mutex descriptor_failures_mutex;
+  std::vector<std::pair<std::size_t, core::Status>> descriptor_failures;
+  core::SerialWorker descriptors(static_cast<std::size_t>(options.odometry_queue));
+  const auto report_descriptor_failures = [&] {
+    std::vector<std::pair<std::size_t, core::Status>> failures;
+    {
+      std::lock_guard<std::mutex> lock(descriptor_failures_mutex);
+      failures.swap(descriptor_failures);
+    }
+    for (const auto& [index, status] : failures) report(index, status);
+  };
   // Builds submaps and descriptors from the worker's results that are ready (all with wait).
   const auto drain = [&](bool wait) {
     while (auto result = odometry.value()->Pop(wait)) {
@@ -190,12 +207,21 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
         mapper.value().CountSkippedScan();
       } else {
         status = mapper.value().AddRegisteredScan(result->value());
-        if (status.ok()) {
+        if (status.ok() && options.sequential) {
           status = recognizer.value().AddScan(result->value().deskewed_scan,
                                               mapper.value().current_submap_id());
+        } else if (status.ok()) {
+          descriptors.Post([&, index, submap = mapper.value().current_submap_id(),
+                            scan = std::move(result->value().deskewed_scan)] {
+            const core::Status added = recognizer.value().AddScan(scan, submap);
+            if (added.ok()) return;
+            std::lock_guard<std::mutex> lock(descriptor_failures_mutex);
+            descriptor_failures.emplace_back(index, added);
+          });
         }
       }
       report(index, status);
+      report_descriptor_failures();
       progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
     }
   };
@@ -221,6 +247,8 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
         return true;
       });
   drain(true);
+  descriptors.Wait();
+  report_descriptor_failures();
   progress.Finish();
   if (!read.ok()) {
     std::fprintf(stderr, "offline_mapper: %s; the map was not changed\n", read.message().c_str());
