@@ -681,6 +681,10 @@ TEST_F(InterSessionMatcherTest, ASubmapWhoseLoopsAllDisagreeWithItsNeighboursIsW
   for (std::uint32_t n : neighbours) EXPECT_TRUE(placed.count(n)) << "neighbour " << n;
   // The untilted session loses no loop to the rule.
   EXPECT_EQ(match_session(data_->current, 0.0).loops.size(), reference.loops.size());
+  for (const LoopRecord& rec : reference.records) {
+    EXPECT_EQ(rec.reason.find("apart from every loop of its neighbours"), std::string::npos)
+        << "cur " << rec.current_submap << " -> " << rec.history_submap;
+  }
 }
 
 TEST(InterSessionMatcherConfigTest, ValidatesFields) {

@@ -660,7 +660,8 @@ void MatchBySequence(const InterSessionMatcherConfig& config, const MapContents&
 
 // The current submaps (index -> why) none of whose accepted loops agrees with any loop of its
 // neighbours along the session, while loops of two of those neighbours agree with each other
-// (see neighbour_path_m). `accepted`: every accepted loop so far.
+// (see neighbour_path_m). `accepted`: the accepted loops so far (of the submaps not withdrawn
+// already). It runs once, before sequence guidance, whose loops follow their neighbours' anyway.
 std::map<std::size_t, std::string> SubmapsApartFromNeighbours(
     const std::vector<const Registered*>& accepted, const SequenceConsistencyConfig& consistency,
     const SessionResult& current) {
@@ -732,11 +733,16 @@ void WithdrawSuspectSubmaps(const SequenceConsistencyConfig& consistency,
                            std::to_string(result->records[record].history_submap) +
                            "); its neighbours' loops place it");
   }
+  // Then the submaps apart from their neighbours, judged by the accepted loops of the others.
   std::vector<const Registered*> accepted;
   for (std::size_t j = 0; j < registered->size(); ++j) {
-    if ((*in_group)[j]) accepted.push_back(&(*registered)[j]);
+    if ((*in_group)[j] && !suspect.count((*registered)[j].current)) {
+      accepted.push_back(&(*registered)[j]);
+    }
   }
-  for (const Registered& r : guided_accepted) accepted.push_back(&r);
+  for (const Registered& r : guided_accepted) {
+    if (!suspect.count(r.current)) accepted.push_back(&r);
+  }
   for (auto& [c, why] : SubmapsApartFromNeighbours(accepted, consistency, current)) {
     suspect.emplace(c, std::move(why));
   }

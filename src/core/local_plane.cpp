@@ -55,7 +55,9 @@ Status ScanNormalConfig::Validate() const {
     return Status::Error("scan_normal.azimuth_bins must be >= 8, got " +
                          std::to_string(azimuth_bins));
   }
-  if (column_reach < 1 || column_step < 1 || column_reach * column_step * 2 >= azimuth_bins) {
+  // In 64 bits: this bound keeps EstimateScanNormals' column look-ups inside their row.
+  if (column_reach < 1 || column_step < 1 ||
+      std::int64_t{column_reach} * column_step * 2 >= azimuth_bins) {
     return Status::Error("scan_normal.column_reach / column_step must be >= 1 and span less "
                          "than the full circle");
   }

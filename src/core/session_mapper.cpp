@@ -92,6 +92,7 @@ struct SessionMapper::State {
   }
 
   void AddFinishedSubmap(Submap submap) {
+    ApplyVerticalPriors(false);
     const std::uint32_t id = submap.id;
     odom_origins.push_back(submap.T_map_submap);
     const Pose3 estimate = submaps.empty() ? submap.T_map_submap : CorrectedOrigin(id);
@@ -212,16 +213,24 @@ struct SessionMapper::State {
     *information = g.information;
   }
 
-  void ApplyVerticalPriors() {
+  // The pending vertical priors that are ready (all of them with `wait`). Applied as they
+  // come, so that no finished estimate holds its copy of the submap's points (a future's
+  // state keeps its task) until the next solve.
+  void ApplyVerticalPriors(bool wait) {
+    std::size_t kept = 0;
     for (auto& [id, estimate] : pending_vertical) {
+      if (!wait && estimate.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+        pending_vertical[kept++] = {id, std::move(estimate)};
+        continue;
+      }
       const VerticalEvidence vertical = estimate.get();
       if (vertical.valid) graph.SetVerticalPrior(id, vertical.information);
     }
-    pending_vertical.clear();
+    pending_vertical.resize(kept);
   }
 
   void Optimise() {
-    ApplyVerticalPriors();
+    ApplyVerticalPriors(true);
     const auto start = std::chrono::steady_clock::now();
     StatusOr<PoseGraphSummary> summary = graph.Optimize();
     timings.optimisation_s.push_back(SecondsSince(start));

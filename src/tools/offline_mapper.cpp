@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -43,10 +44,12 @@ const char kUsage[] =
     "  --session NAME    session name (default: the bag's file name without extension)\n"
     "  --max-scans N     stop each session after N scans (0: all)\n"
     "  --quiet           no progress output\n"
-    "  --sequential      odometry and submap building in one thread (default: the odometry\n"
-    "                    runs ahead on a second thread; same result either way)\n"
+    "  --sequential      odometry, submap building and place descriptors in one thread\n"
+    "                    (default: the odometry runs ahead on a second thread and the\n"
+    "                    descriptors follow on a third; same result either way)\n"
     "  --odometry-queue N  scans the odometry thread may run ahead of the submap building\n"
-    "                    (16, about 1 MB each: it keeps going while a submap is finished)\n";
+    "                    (16, about 1 MB each: it keeps going while a submap is finished);\n"
+    "                    also the scans queued for the place descriptors' thread\n";
 
 struct Options {
   std::vector<std::string> bags;
@@ -189,7 +192,8 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
   // (Declared before the worker, whose destructor may still run tasks that use them.)
   std::mutex descriptor_failures_mutex;
   std::vector<std::pair<std::size_t, core::Status>> descriptor_failures;
-  core::SerialWorker descriptors(static_cast<std::size_t>(options.odometry_queue));
+  std::optional<core::SerialWorker> descriptors;  // none with --sequential
+  if (!options.sequential) descriptors.emplace(static_cast<std::size_t>(options.odometry_queue));
   const auto report_descriptor_failures = [&] {
     std::vector<std::pair<std::size_t, core::Status>> failures;
     {
@@ -211,7 +215,7 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
           status = recognizer.value().AddScan(result->value().deskewed_scan,
                                               mapper.value().current_submap_id());
         } else if (status.ok()) {
-          descriptors.Post([&, index, submap = mapper.value().current_submap_id(),
+          descriptors->Post([&, index, submap = mapper.value().current_submap_id(),
                             scan = std::move(result->value().deskewed_scan)] {
             const core::Status added = recognizer.value().AddScan(scan, submap);
             if (added.ok()) return;
@@ -247,7 +251,7 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
         return true;
       });
   drain(true);
-  descriptors.Wait();
+  if (descriptors) descriptors->Wait();
   report_descriptor_failures();
   progress.Finish();
   if (!read.ok()) {

@@ -5,7 +5,8 @@
 //
 // Ownership: the tasks run on the worker thread only; the owner must not touch what a
 // pending task touches until Wait() returns. Post and Wait are thread-safe; tasks run in the
-// order their Post calls returned.
+// order their Post calls returned. A task must not call Post or Wait (it would wait for
+// itself), and no thread may still be in Post when the worker is destroyed.
 #pragma once
 
 #include <condition_variable>
