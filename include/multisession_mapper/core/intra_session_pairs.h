@@ -32,14 +32,16 @@ struct IntraSessionPairsConfig {
   /// Compare submap pairs of the session before it is handed on. Off by default since
   /// session 62: the in-session visibility checks added since session 44 (checks to 60 m,
   /// against past images, seen-through groups, robust heights) remove nearly all the pairs
-  /// removed. `campus` s00 alone, true submap origins, seed 1: moving objects removed 97.093 %
-  /// with the pairs, 97.055 % without (SA 99.704 / 99.705 %); 3-session maps, map fit, seeds
-  /// 1 / 3: high-dynamic DA 97.486 -> 97.476 / 97.267 -> 97.249 %, static SA 99.415 ->
-  /// 99.418 / 99.349 -> 99.347 %, low-dynamic DA 51.06 -> 51.20 / 50.24 -> 50.18 %, same
-  /// ATE and no wrong submap (with the neighbour rule of the inter-session matching, which
-  /// the changed submaps needed on seed 1). They cost 14 % of the whole run's CPU (seed-1
-  /// s00: user CPU 124-131 s with, 106-108 s without), but little wall time, because they
-  /// ran at idle priority.
+  /// removed. `campus` s00 alone, true submap origins, seeds 1 / 3 / 2: moving objects
+  /// removed 97.093 / 97.167 / 97.728 % with the pairs, 97.055 / 97.130 / 97.704 % without
+  /// (SA 99.704 / 99.800 / 99.778 -> 99.705 / 99.802 / 99.781 %); 3-session maps, map fit:
+  /// high-dynamic DA 97.486 -> 97.476 / 97.267 -> 97.249 / 97.581 -> 97.572 %, static SA
+  /// 99.415 -> 99.418 / 99.349 -> 99.347 / 99.445 -> 99.455 %, low-dynamic DA 51.06 -> 51.20
+  /// / 50.24 -> 50.18 / 57.74 -> 57.84 %, same ATE and no wrong submap (with the neighbour
+  /// rule of the inter-session matching, which the changed submaps needed on seed 1). They
+  /// cost 14 % of the whole run's CPU (seed-1 s00: user CPU 116-130 s with, 99-107 s
+  /// without), but less wall time (median 9.33x -> 9.80x real time with the other changes
+  /// of session 62), because they ran at idle priority.
   bool enabled = false;
   /// Each submap is paired with the next this many submaps by id (1..8). `campus` seed 1 s00
   /// (true submap origins): moving objects removed 89.27 % without the pairs, 91.07 % with 1,
