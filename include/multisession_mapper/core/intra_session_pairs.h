@@ -39,8 +39,8 @@ struct IntraSessionPairsConfig {
   /// 99.415 -> 99.418 / 99.349 -> 99.347 / 99.445 -> 99.455 %, low-dynamic DA 51.06 -> 51.20
   /// / 50.24 -> 50.18 / 57.74 -> 57.84 %, same ATE and no wrong submap (with the neighbour
   /// rule of the inter-session matching, which the changed submaps needed on seed 1). They
-  /// cost 14 % of the whole run's CPU (seed-1 s00: user CPU 116-130 s with, 99-107 s
-  /// without), but less wall time (median 9.33x -> 9.80x real time with the other changes
+  /// cost 14 % of the whole run's CPU (seed-1 s00: user CPU 116-134 s with, 99-111 s
+  /// without), but less wall time (median 9.25x -> 9.67x real time with the other changes
   /// of session 62), because they ran at idle priority.
   bool enabled = false;
   /// Each submap is paired with the next this many submaps by id (1..8). `campus` seed 1 s00
