@@ -48,13 +48,19 @@ bool AgreeWithin(const Registered& a, const Registered& b, double max_t, double 
   return Discrepancy(a, b, max_t, max_r) <= 1.0;
 }
 
-// Discrepancy under the sequence-consistency bounds, which grow with the distance between the
-// two current submaps (odometry drift between them).
+// Discrepancy under bounds `base_t` [m] / `base_r` [rad] that grow with the distance between
+// the two current submaps (odometry drift between them) by the per-metre sequence bounds.
+double GrowingDiscrepancy(const Registered& a, const Registered& b, double base_t, double base_r,
+                          const SequenceConsistencyConfig& config) {
+  const double separation_m = (a.origin - b.origin).norm();
+  return Discrepancy(a, b, base_t + config.max_translation_per_m * separation_m,
+                     base_r + config.max_rotation_per_m * separation_m);
+}
+
+// Discrepancy under the sequence-consistency bounds.
 double ConsistencyDiscrepancy(const Registered& a, const Registered& b,
                               const SequenceConsistencyConfig& config) {
-  const double separation_m = (a.origin - b.origin).norm();
-  return Discrepancy(a, b, config.max_translation_m + config.max_translation_per_m * separation_m,
-                     config.max_rotation_rad + config.max_rotation_per_m * separation_m);
+  return GrowingDiscrepancy(a, b, config.max_translation_m, config.max_rotation_rad, config);
 }
 
 bool Agree(const Registered& a, const Registered& b, const SequenceConsistencyConfig& config) {
@@ -74,13 +80,11 @@ bool AgreeUpToDrift(const Registered& a, const Registered& b,
 }
 
 // Agreement of loops of two neighbouring submaps (see neighbour_path_m): the same-submap
-// bounds plus the sequence bounds' growth with the distance between the two origins.
+// bounds, growing as the sequence bounds do.
 bool AgreeAsNeighbours(const Registered& a, const Registered& b,
                        const SequenceConsistencyConfig& config) {
-  const double separation_m = (a.origin - b.origin).norm();
-  return AgreeWithin(a, b,
-                     config.same_submap_translation_m + config.max_translation_per_m * separation_m,
-                     config.same_submap_rotation_rad + config.max_rotation_per_m * separation_m);
+  return GrowingDiscrepancy(a, b, config.same_submap_translation_m,
+                            config.same_submap_rotation_rad, config) <= 1.0;
 }
 
 // Single-linkage groups (connected components of Agree) of the loops `members` of `all`.
@@ -681,23 +685,24 @@ std::map<std::size_t, std::string> SubmapsApartFromNeighbours(
     return false;
   };
   for (const auto& [c, loops] : by_submap) {
-    std::vector<std::size_t> neighbours;
+    std::vector<const std::vector<const Registered*>*> neighbours;
+    std::string ids;
+    bool agrees = false;  // with a loop of a neighbour: not apart
     for (const auto& [other, other_loops] : by_submap) {
-      if (other != c &&
-          std::abs(other_loops.front()->path_m - loops.front()->path_m) <=
+      if (agrees || other == c ||
+          std::abs(other_loops.front()->path_m - loops.front()->path_m) >
               consistency.neighbour_path_m) {
-        neighbours.push_back(other);
+        continue;
       }
+      agrees = any_agree(loops, other_loops);
+      neighbours.push_back(&other_loops);
+      ids += (ids.empty() ? "" : ", ") + std::to_string(current.submaps[other].id);
     }
-    bool agrees = false;
-    for (std::size_t n : neighbours) agrees = agrees || any_agree(loops, by_submap.at(n));
     if (agrees) continue;
     bool majority = false;
-    std::string ids;
-    for (std::size_t i = 0; i < neighbours.size(); ++i) {
-      ids += (i == 0 ? "" : ", ") + std::to_string(current.submaps[neighbours[i]].id);
-      for (std::size_t j = i + 1; j < neighbours.size(); ++j) {
-        majority = majority || any_agree(by_submap.at(neighbours[i]), by_submap.at(neighbours[j]));
+    for (std::size_t i = 0; i < neighbours.size() && !majority; ++i) {
+      for (std::size_t j = i + 1; j < neighbours.size() && !majority; ++j) {
+        majority = any_agree(*neighbours[i], *neighbours[j]);
       }
     }
     if (!majority) continue;
