@@ -17,8 +17,10 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "multisession_mapper/core/bounded_queue.h"
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/session_merger.h"
 #include "multisession_mapper/core/pipeline_config.h"
@@ -44,8 +46,9 @@ const char kUsage[] =
     "  --session NAME    session name (default: the bag's file name without extension)\n"
     "  --max-scans N     stop each session after N scans (0: all)\n"
     "  --quiet           no progress output\n"
-    "  --sequential      odometry, submap building and place descriptors in one thread\n"
-    "                    (default: the odometry runs ahead on a second thread and the\n"
+    "  --sequential      bag reading, odometry, submap building and place descriptors\n"
+    "                    one after the other (default: the bag is read ahead on a thread\n"
+    "                    of its own, the odometry runs ahead on another and the\n"
     "                    descriptors follow on a third; same result either way)\n"
     "  --odometry-queue N  scans the odometry thread may run ahead of the submap building\n"
     "                    (16, about 1 MB each: it keeps going while a submap is finished);\n"
@@ -66,6 +69,53 @@ struct Options {
   /// 8.0x / 7.8x, 305 MB. The submap thread's spikes (a submap's finishing, ~0.2 s) no
   /// longer stall the odometry, which is the busier thread (57 % of the CPU).
   long long odometry_queue = 16;
+};
+
+// Scans read ahead of the odometry's queue (about 1 MB each). Whole campus seed-1 s00, peak
+// RSS with 16: 749-753 MB, with 4: 741-746 MB, against 722-734 MB reading in place.
+constexpr std::size_t kReadAheadScans = 4;
+
+// A scan read from the bag (or why it could not be used) with its index in the bag.
+struct ReadScan {
+  std::size_t index = 0;
+  core::StatusOr<core::LidarScan> scan;
+};
+
+// Reads a bag on a thread of its own, `capacity` scans ahead of the thread that takes them
+// (that thread builds the submaps, the critical path of a whole run; reading and converting
+// took ~3 s of it per campus session). Destroying it stops the reading and joins the thread.
+class BagReadAhead {
+ public:
+  BagReadAhead(msm::conversions::BagScanReader* reader, std::size_t capacity,
+               std::size_t max_scans)
+      : scans_(capacity), thread_([this, reader, max_scans] {
+          status_ = reader->ForEach(
+              [this, max_scans](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
+                if (max_scans > 0 && index >= max_scans) return false;
+                return scans_.Push(ReadScan{index, scan});
+              });
+          scans_.Close();
+        }) {}
+  ~BagReadAhead() {
+    scans_.Close();
+    if (thread_.joinable()) thread_.join();
+  }
+  BagReadAhead(const BagReadAhead&) = delete;
+  BagReadAhead& operator=(const BagReadAhead&) = delete;
+
+  /// The next scan in bag order: if read already (wait = false) or once it is (wait = true);
+  /// nullopt with wait once the bag is read to its end (or to max_scans).
+  std::optional<ReadScan> Next(bool wait) { return scans_.Pop(wait); }
+  /// Waits for the reading to end; its outcome (an error for an unreadable bag).
+  core::Status Finish() {
+    if (thread_.joinable()) thread_.join();
+    return status_;
+  }
+
+ private:
+  core::BoundedQueue<ReadScan> scans_;
+  core::Status status_ = core::Status::Ok();  // written by the thread, read after the join
+  std::thread thread_;                         // last: starts once the members above exist
 };
 
 int UsageError(const std::string& message) {
@@ -202,55 +252,83 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     }
     for (const auto& [index, status] : failures) report(index, status);
   };
-  // Builds submaps and descriptors from the worker's results that are ready (all with wait).
-  const auto drain = [&](bool wait) {
-    while (auto result = odometry.value()->Pop(wait)) {
-      const std::size_t index = pending_index[next_pending++];
-      core::Status status = result->status();
-      if (!result->ok()) {
-        mapper.value().CountSkippedScan();
-      } else {
-        status = mapper.value().AddRegisteredScan(result->value());
-        if (status.ok() && options.sequential) {
-          status = recognizer.value().AddScan(result->value().deskewed_scan,
-                                              mapper.value().current_submap_id());
-        } else if (status.ok()) {
-          descriptors->Post([&, index, submap = mapper.value().current_submap_id(),
-                            scan = std::move(result->value().deskewed_scan)] {
-            const core::Status added = recognizer.value().AddScan(scan, submap);
-            if (added.ok()) return;
-            std::lock_guard<std::mutex> lock(descriptor_failures_mutex);
-            descriptor_failures.emplace_back(index, added);
-          });
-        }
+  // Builds the submaps and descriptors from one of the worker's results.
+  const auto build = [&](core::StatusOr<core::OdometryResult> result) {
+    const std::size_t index = pending_index[next_pending++];
+    core::Status status = result.status();
+    if (!result.ok()) {
+      mapper.value().CountSkippedScan();
+    } else {
+      status = mapper.value().AddRegisteredScan(result.value());
+      if (status.ok() && options.sequential) {
+        status = recognizer.value().AddScan(result.value().deskewed_scan,
+                                            mapper.value().current_submap_id());
+      } else if (status.ok()) {
+        descriptors->Post([&, index, submap = mapper.value().current_submap_id(),
+                          scan = std::move(result.value().deskewed_scan)] {
+          const core::Status added = recognizer.value().AddScan(scan, submap);
+          if (added.ok()) return;
+          std::lock_guard<std::mutex> lock(descriptor_failures_mutex);
+          descriptor_failures.emplace_back(index, added);
+        });
       }
-      report(index, status);
-      report_descriptor_failures();
-      progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
+    }
+    report(index, status);
+    report_descriptor_failures();
+    progress.Update(index + 1, "submap " + std::to_string(mapper.value().current_submap_id()));
+  };
+  // Hands a scan read from the bag (or its error) to the odometry, in bag order.
+  const auto feed = [&](core::StatusOr<core::LidarScan> scan, std::size_t index) {
+    if (scan.ok() && last_stamp_s > 0.0 &&
+        scan.value().stamp_s - last_stamp_s > config.session.odometry.max_scan_gap_s) {
+      std::fprintf(stderr,
+                   "\noffline_mapper: gap of %.2f s before scan %zu (more than "
+                   "odometry.max_scan_gap_s): the motion model restarts\n",
+                   scan.value().stamp_s - last_stamp_s, index);
+    }
+    if (scan.ok()) {
+      last_stamp_s = scan.value().stamp_s;
+      pending_index.push_back(index);
+      odometry.value()->Push(std::move(scan).value());
+    } else {
+      mapper.value().CountSkippedScan();
+      report(index, scan.status());
     }
   };
-  const core::Status read = reader.value().ForEach(
-      [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
-        if (options.max_scans > 0 && index >= static_cast<std::size_t>(options.max_scans)) return false;
-        if (scan.ok() && last_stamp_s > 0.0 &&
-            scan.value().stamp_s - last_stamp_s > config.session.odometry.max_scan_gap_s) {
-          std::fprintf(stderr,
-                       "\noffline_mapper: gap of %.2f s before scan %zu (more than "
-                       "odometry.max_scan_gap_s): the motion model restarts\n",
-                       scan.value().stamp_s - last_stamp_s, index);
-        }
-        if (scan.ok()) {
-          last_stamp_s = scan.value().stamp_s;
-          pending_index.push_back(index);
-          odometry.value()->Push(scan.value());
-        } else {
-          mapper.value().CountSkippedScan();
-          report(index, scan.status());
-        }
-        drain(options.sequential);
-        return true;
-      });
-  drain(true);
+  const std::size_t max_scans = static_cast<std::size_t>(options.max_scans);  // 0: all
+  core::Status read = core::Status::Ok();
+  if (options.sequential) {
+    read = reader.value().ForEach(
+        [&](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
+          if (max_scans > 0 && index >= max_scans) return false;
+          feed(scan, index);
+          while (auto result = odometry.value()->Pop(true)) build(std::move(*result));
+          return true;
+        });
+  } else {
+    // The bag is read on a thread of its own; this one keeps the odometry fed with the scans
+    // read so far (up to its queue) and builds from its results, waiting only when it has
+    // nothing else to do.
+    const std::size_t queue = static_cast<std::size_t>(options.odometry_queue);
+    BagReadAhead bag(&reader.value(), kReadAheadScans, max_scans);
+    for (;;) {
+      while (odometry.value()->pending() < queue) {
+        std::optional<ReadScan> next = bag.Next(false);
+        if (!next) break;
+        feed(std::move(next->scan), next->index);
+      }
+      if (auto result = odometry.value()->Pop(false)) {
+        build(std::move(*result));
+      } else if (odometry.value()->pending() > 0) {
+        if (auto waited = odometry.value()->Pop(true)) build(std::move(*waited));
+      } else if (std::optional<ReadScan> next = bag.Next(true)) {
+        feed(std::move(next->scan), next->index);
+      } else {
+        break;  // all read and built
+      }
+    }
+    read = bag.Finish();
+  }
   if (descriptors) descriptors->Wait();
   report_descriptor_failures();
   progress.Finish();
