@@ -4,7 +4,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
+#include <sstream>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -129,6 +132,37 @@ TEST(MapStore, RoundTrip) {
   EXPECT_TRUE(fs::exists(fs::path(dir) / "loops/s00.csv"));
   EXPECT_FALSE(fs::exists(dir + ".new"));
   EXPECT_FALSE(fs::exists(dir + ".old"));
+}
+
+// The submaps are written on several threads: the files (manifest included) are the same
+// byte for byte as with one.
+TEST(MapStore, WriteThreadsDoNotChangeTheFiles) {
+  const MapContents map = MakeMap(2, 5);
+  ASSERT_GE(map.submaps.size(), 4u);
+  std::map<std::string, std::string> reference;
+  for (const int threads : {1, 2, 4}) {
+    const std::string dir = TempDir("write_threads_" + std::to_string(threads));
+    MapStoreConfig config;
+    config.write_threads = threads;
+    ASSERT_TRUE(MapStore(config).Save(map, dir).ok());
+    std::map<std::string, std::string> files;
+    for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+      if (!entry.is_regular_file()) continue;
+      std::ifstream in(entry.path(), std::ios::binary);
+      std::ostringstream bytes;
+      bytes << in.rdbuf();
+      files[fs::relative(entry.path(), dir).string()] = bytes.str();
+    }
+    EXPECT_GT(files.count("manifest.yaml"), 0u);
+    if (reference.empty()) {
+      reference = files;
+    } else {
+      EXPECT_TRUE(files == reference) << threads << " write threads";
+    }
+    StatusOr<MapContents> loaded = MapStore().Load(dir);
+    ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+    ExpectSameMap(map, loaded.value());
+  }
 }
 
 TEST(MapStore, RoundTripKeepsTheViewsOfEachPoint) {

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -18,6 +19,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "multisession_mapper/core/checksum.h"
+#include "multisession_mapper/core/parallel_for.h"
 #include "multisession_mapper/core/se3.h"
 #include "multisession_mapper/core/trajectory_io.h"
 
@@ -393,10 +395,10 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
   fs::create_directories(fresh, ec);
   if (ec) return Status::Error("cannot create '" + fresh.string() + "': " + ec.message());
 
-  int files_written = 0;
+  std::atomic<int> files_written{0};  // counted from the submap writers' threads too
   auto crash_hook = [&]() {
-    ++files_written;
-    return config_.test_abort_after_files >= 0 && files_written >= config_.test_abort_after_files;
+    const int written_now = ++files_written;
+    return config_.test_abort_after_files >= 0 && written_now >= config_.test_abort_after_files;
   };
   const Status kAborted = Status::Error("save aborted by the test hook (simulated crash)");
   std::vector<std::string> written;  // relative paths, for the manifest's file list
@@ -434,8 +436,11 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
       if (crash_hook()) return kAborted;
     }
   }
-  // Submaps: unchanged ones are hard-linked from the current map.
-  for (const Submap& submap : contents.submaps) {
+  // Submaps: unchanged ones are hard-linked from the current map, the others are written on
+  // write_threads threads, each file read back for its checksum by the thread that wrote it.
+  std::vector<std::size_t> to_write;  // indices into contents.submaps
+  for (std::size_t k = 0; k < contents.submaps.size(); ++k) {
+    const Submap& submap = contents.submaps[k];
     if (!SafeName(submap.session)) return Status::Error("invalid session name '" + submap.session + "'");
     const std::string rel = SubmapFile(submap);
     const fs::path target = fresh / rel;
@@ -451,12 +456,42 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
       }
     }
     if (!linked) {
-      Status s = WritePcd(target, submap.points, &submap.views);
+      to_write.push_back(k);
+    } else if (crash_hook()) {
+      return kAborted;
+    }
+  }
+  {
+    std::vector<Status> statuses(to_write.size());
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> sums(to_write.size());
+    std::atomic<bool> stop{false};  // a write failed or the crash hook fired: start no more
+    ParallelFor(to_write.size(), config_.write_threads, [&](std::size_t j) {
+      if (stop) {
+        statuses[j] = kAborted;
+        return;
+      }
+      const Submap& submap = contents.submaps[to_write[j]];
+      const fs::path target = fresh / SubmapFile(submap);
+      statuses[j] = WritePcd(target, submap.points, &submap.views);
+      if (statuses[j].ok()) {
+        StatusOr<std::string> bytes = ReadWholeFile(target);
+        if (bytes.ok()) {
+          sums[j] = {bytes.value().size(), Fnv1a64(bytes.value())};
+        } else {
+          statuses[j] = bytes.status();
+        }
+      }
+      if (!statuses[j].ok() || crash_hook()) stop = true;
+    });
+    for (const Status& s : statuses) {
       if (!s.ok()) return s;
     }
-    written.push_back(rel);
-    if (crash_hook()) return kAborted;
+    if (stop) return kAborted;
+    for (std::size_t j = 0; j < to_write.size(); ++j) {
+      known_sums[SubmapFile(contents.submaps[to_write[j]])] = sums[j];
+    }
   }
+  for (const Submap& submap : contents.submaps) written.push_back(SubmapFile(submap));
   // Files of other modules: new contents, or carried over from the current map.
   for (const auto& [rel, bytes] : contents.files) {
     Status s = put(rel, bytes);

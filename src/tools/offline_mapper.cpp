@@ -51,7 +51,7 @@ const char kUsage[] =
     "                    of its own, the odometry runs ahead on another and the\n"
     "                    descriptors follow on a third; same result either way)\n"
     "  --odometry-queue N  scans the odometry thread may run ahead of the submap building\n"
-    "                    (16, about 1 MB each: it keeps going while a submap is finished);\n"
+    "                    (32, about 1 MB each: it keeps going while a submap is finished);\n"
     "                    also the scans queued for the place descriptors' thread\n";
 
 struct Options {
@@ -63,12 +63,15 @@ struct Options {
   long long max_scans = 0;
   bool quiet = false;
   bool sequential = false;
-  /// Scans queued for or in the odometry thread before reading waits (OdometryWorker's
-  /// max_pending). Session 36, first 1500 `campus` seed-1 s00 scans, alternating twice:
-  /// 4: 6.6x / 7.1x real time, 16: 7.5x / 7.4x (peak 256 / 270-275 MB); 64 in another run
-  /// 8.0x / 7.8x, 305 MB. The submap thread's spikes (a submap's finishing, ~0.2 s) no
-  /// longer stall the odometry, which is the busier thread (57 % of the CPU).
-  long long odometry_queue = 16;
+  /// Scans handed to the odometry thread whose results the submap building has not taken
+  /// yet (queued, in the odometry or done; OdometryWorker's max_pending bounds the first two).
+  /// Session 36, first 1500 `campus` seed-1 s00 scans, alternating twice: 4: 6.6x / 7.1x real
+  /// time, 16: 7.5x / 7.4x (peak 256 / 270-275 MB); 64 in another run 8.0x / 7.8x, 305 MB.
+  /// The submap thread's spikes (a submap's finishing, ~0.2 s) no longer stall the odometry.
+  /// Session 63, bag read ahead, whole seed-1 s00: 16 / 48 alternating five times: median
+  /// 9.56x / 10.33x (48 faster in every pair), peak 741-749 / 781-792 MB; then 32 / 48 / 96
+  /// three times each: median 10.41 / 10.52 / 10.44x, peak 768-772 / 784-790 / 807-844 MB.
+  long long odometry_queue = 32;
 };
 
 // Scans read ahead of the odometry's queue (about 1 MB each). Whole campus seed-1 s00, peak
