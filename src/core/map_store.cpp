@@ -386,6 +386,8 @@ bool MapStore::Exists(const std::string& dir) {
 }
 
 Status MapStore::Save(const MapContents& contents, const std::string& dir) const {
+  const Status valid = config_.Validate();
+  if (!valid.ok()) return valid;
   Status recovered = Recover(dir);
   if (!recovered.ok()) return recovered;
   const fs::path current = Sibling(dir, "");
@@ -462,14 +464,12 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
     }
   }
   {
-    std::vector<Status> statuses(to_write.size());
+    std::vector<Status> statuses(to_write.size());  // Ok for files skipped after a stop
     std::vector<std::pair<std::uint64_t, std::uint64_t>> sums(to_write.size());
     std::atomic<bool> stop{false};  // a write failed or the crash hook fired: start no more
+    std::atomic<bool> hook_fired{false};
     ParallelFor(to_write.size(), config_.write_threads, [&](std::size_t j) {
-      if (stop) {
-        statuses[j] = kAborted;
-        return;
-      }
+      if (stop) return;
       const Submap& submap = contents.submaps[to_write[j]];
       const fs::path target = fresh / SubmapFile(submap);
       statuses[j] = WritePcd(target, submap.points, &submap.views);
@@ -481,12 +481,17 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
           statuses[j] = bytes.status();
         }
       }
-      if (!statuses[j].ok() || crash_hook()) stop = true;
+      if (!statuses[j].ok()) {
+        stop = true;
+      } else if (crash_hook()) {
+        hook_fired = true;
+        stop = true;
+      }
     });
     for (const Status& s : statuses) {
-      if (!s.ok()) return s;
+      if (!s.ok()) return s;  // a real error comes first, even when the hook fired too
     }
-    if (stop) return kAborted;
+    if (hook_fired) return kAborted;
     for (std::size_t j = 0; j < to_write.size(); ++j) {
       known_sums[SubmapFile(contents.submaps[to_write[j]])] = sums[j];
     }

@@ -65,7 +65,8 @@ struct Options {
   bool sequential = false;
   /// Scans handed to the odometry thread whose results the submap building has not taken
   /// yet (queued, in the odometry or done; OdometryWorker's max_pending bounds the first two).
-  /// Session 36, first 1500 `campus` seed-1 s00 scans, alternating twice: 4: 6.6x / 7.1x real
+  /// Session 36 (when it counted only the scans queued or in the odometry, not the results),
+  /// first 1500 `campus` seed-1 s00 scans, alternating twice: 4: 6.6x / 7.1x real
   /// time, 16: 7.5x / 7.4x (peak 256 / 270-275 MB); 64 in another run 8.0x / 7.8x, 305 MB.
   /// The submap thread's spikes (a submap's finishing, ~0.2 s) no longer stall the odometry.
   /// Session 63, bag read ahead, whole seed-1 s00: 16 / 48 alternating five times: median
@@ -107,7 +108,8 @@ class BagReadAhead {
   BagReadAhead& operator=(const BagReadAhead&) = delete;
 
   /// The next scan in bag order: if read already (wait = false) or once it is (wait = true);
-  /// nullopt with wait once the bag is read to its end (or to max_scans).
+  /// nullopt with wait once the reading ended (the bag's end, max_scans, or an error that
+  /// Finish returns).
   std::optional<ReadScan> Next(bool wait) { return scans_.Pop(wait); }
   /// Waits for the reading to end; its outcome (an error for an unreadable bag).
   core::Status Finish() {
@@ -314,23 +316,33 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     // nothing else to do.
     const std::size_t queue = static_cast<std::size_t>(options.odometry_queue);
     BagReadAhead bag(&reader.value(), kReadAheadScans, max_scans);
-    for (;;) {
+    const auto feed_read = [&] {  // the scans read so far, as far as the odometry takes them
       while (odometry.value()->pending() < queue) {
         std::optional<ReadScan> next = bag.Next(false);
         if (!next) break;
         feed(std::move(next->scan), next->index);
       }
-      if (auto result = odometry.value()->Pop(false)) {
-        build(std::move(*result));
-      } else if (odometry.value()->pending() > 0) {
-        if (auto waited = odometry.value()->Pop(true)) build(std::move(*waited));
-      } else if (std::optional<ReadScan> next = bag.Next(true)) {
-        feed(std::move(next->scan), next->index);
-      } else {
-        break;  // all read and built
+    };
+    try {
+      for (;;) {
+        feed_read();
+        if (auto result = odometry.value()->Pop(false)) {
+          build(std::move(*result));
+        } else if (odometry.value()->pending() > 0) {
+          std::optional<core::StatusOr<core::OdometryResult>> waited =
+              odometry.value()->Pop(true);
+          feed_read();  // what was read while this thread waited, before a long build
+          if (waited) build(std::move(*waited));
+        } else if (std::optional<ReadScan> next = bag.Next(true)) {
+          feed(std::move(next->scan), next->index);
+        } else {
+          break;  // all read and built
+        }
       }
+      read = bag.Finish();
+    } catch (const std::exception& e) {  // e.g. out of memory: the map is left as it was
+      read = core::Status::Error(std::string("error while mapping: ") + e.what());
     }
-    read = bag.Finish();
   }
   if (descriptors) descriptors->Wait();
   report_descriptor_failures();

@@ -56,7 +56,9 @@ struct MapContents {
 
 struct MapStoreConfig {
   /// Test hook for crash safety: when >= 0, Save() stops (as a crash would: no clean-up) after
-  /// writing this many files. Never set outside tests.
+  /// writing this many files (hard-linked submaps first, then the written ones; with
+  /// write_threads > 1 the other threads finish the files they had begun). Never set outside
+  /// tests.
   int test_abort_after_files = -1;
   /// Verify every file's checksum on load (costs one read of the map).
   bool verify_checksums = true;
