@@ -67,6 +67,13 @@ StatusOr<std::string> ReadWholeFile(const fs::path& path) {
   return bytes;
 }
 
+// Size and FNV-1a checksum of a file as written (the manifest's record of it).
+StatusOr<std::pair<std::uint64_t, std::uint64_t>> SizeAndChecksum(const fs::path& path) {
+  StatusOr<std::string> bytes = ReadWholeFile(path);
+  if (!bytes.ok()) return bytes.status();
+  return std::make_pair(static_cast<std::uint64_t>(bytes.value().size()), Fnv1a64(bytes.value()));
+}
+
 Status FsyncPath(const fs::path& path, bool directory) {
   const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
   if (fd < 0) return Status::Error("cannot open '" + path.string() + "' to sync it");
@@ -440,11 +447,13 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
   }
   // Submaps: unchanged ones are hard-linked from the current map, the others are written on
   // write_threads threads, each file read back for its checksum by the thread that wrote it.
-  std::vector<std::size_t> to_write;  // indices into contents.submaps
+  std::vector<std::string> submap_files;  // relative paths, by submap
+  std::vector<std::size_t> to_write;       // indices into contents.submaps
+  submap_files.reserve(contents.submaps.size());  // `rel` below stays valid
   for (std::size_t k = 0; k < contents.submaps.size(); ++k) {
     const Submap& submap = contents.submaps[k];
     if (!SafeName(submap.session)) return Status::Error("invalid session name '" + submap.session + "'");
-    const std::string rel = SubmapFile(submap);
+    const std::string& rel = submap_files.emplace_back(SubmapFile(submap));
     const fs::path target = fresh / rel;
     fs::create_directories(target.parent_path(), ec);
     bool linked = false;
@@ -471,14 +480,14 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
     ParallelFor(to_write.size(), config_.write_threads, [&](std::size_t j) {
       if (stop) return;
       const Submap& submap = contents.submaps[to_write[j]];
-      const fs::path target = fresh / SubmapFile(submap);
+      const fs::path target = fresh / submap_files[to_write[j]];
       statuses[j] = WritePcd(target, submap.points, &submap.views);
       if (statuses[j].ok()) {
-        StatusOr<std::string> bytes = ReadWholeFile(target);
-        if (bytes.ok()) {
-          sums[j] = {bytes.value().size(), Fnv1a64(bytes.value())};
+        StatusOr<std::pair<std::uint64_t, std::uint64_t>> sum = SizeAndChecksum(target);
+        if (sum.ok()) {
+          sums[j] = sum.value();
         } else {
-          statuses[j] = bytes.status();
+          statuses[j] = sum.status();
         }
       }
       if (!statuses[j].ok()) {
@@ -493,10 +502,10 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
     }
     if (hook_fired) return kAborted;
     for (std::size_t j = 0; j < to_write.size(); ++j) {
-      known_sums[SubmapFile(contents.submaps[to_write[j]])] = sums[j];
+      known_sums[submap_files[to_write[j]]] = sums[j];
     }
   }
-  for (const Submap& submap : contents.submaps) written.push_back(SubmapFile(submap));
+  written.insert(written.end(), submap_files.begin(), submap_files.end());
   // Files of other modules: new contents, or carried over from the current map.
   for (const auto& [rel, bytes] : contents.files) {
     Status s = put(rel, bytes);
@@ -570,9 +579,9 @@ Status MapStore::Save(const MapContents& contents, const std::string& dir) const
   for (const std::string& rel : written) {
     auto sum = known_sums.find(rel);
     if (sum == known_sums.end()) {
-      StatusOr<std::string> bytes = ReadWholeFile(fresh / rel);
-      if (!bytes.ok()) return bytes.status();
-      sum = known_sums.emplace(rel, std::make_pair(bytes.value().size(), Fnv1a64(bytes.value()))).first;
+      StatusOr<std::pair<std::uint64_t, std::uint64_t>> read = SizeAndChecksum(fresh / rel);
+      if (!read.ok()) return read.status();
+      sum = known_sums.emplace(rel, read.value()).first;
     }
     out << YAML::Key << rel << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "bytes"
         << YAML::Value << sum->second.first << YAML::Key << "fnv1a64" << YAML::Value

@@ -95,5 +95,25 @@ core::Status BagScanReader::ForEach(
   return core::Status::Ok();
 }
 
+BagReadAhead::BagReadAhead(BagScanReader* reader, std::size_t capacity, std::size_t max_scans)
+    : scans_(capacity), thread_([this, reader, max_scans] {
+        status_ = reader->ForEach(
+            [this, max_scans](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
+              if (max_scans > 0 && index >= max_scans) return false;
+              return scans_.Push(ReadScan{index, scan});
+            });
+        scans_.Close();
+      }) {}
+
+BagReadAhead::~BagReadAhead() {
+  scans_.Close();
+  if (thread_.joinable()) thread_.join();
+}
+
+core::Status BagReadAhead::Finish() {
+  if (thread_.joinable()) thread_.join();
+  return status_;
+}
+
 }  // namespace conversions
 }  // namespace multisession_mapper

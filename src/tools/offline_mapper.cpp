@@ -17,10 +17,8 @@
 #include <optional>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
-#include "multisession_mapper/core/bounded_queue.h"
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/session_merger.h"
 #include "multisession_mapper/core/pipeline_config.h"
@@ -78,50 +76,6 @@ struct Options {
 // Scans read ahead of the odometry's queue (about 1 MB each). Whole campus seed-1 s00, peak
 // RSS with 16: 749-753 MB, with 4: 741-746 MB, against 722-734 MB reading in place.
 constexpr std::size_t kReadAheadScans = 4;
-
-// A scan read from the bag (or why it could not be used) with its index in the bag.
-struct ReadScan {
-  std::size_t index = 0;
-  core::StatusOr<core::LidarScan> scan;
-};
-
-// Reads a bag on a thread of its own, `capacity` scans ahead of the thread that takes them
-// (that thread builds the submaps, the critical path of a whole run; reading and converting
-// took ~3 s of it per campus session). Destroying it stops the reading and joins the thread.
-class BagReadAhead {
- public:
-  BagReadAhead(msm::conversions::BagScanReader* reader, std::size_t capacity,
-               std::size_t max_scans)
-      : scans_(capacity), thread_([this, reader, max_scans] {
-          status_ = reader->ForEach(
-              [this, max_scans](const core::StatusOr<core::LidarScan>& scan, std::size_t index) {
-                if (max_scans > 0 && index >= max_scans) return false;
-                return scans_.Push(ReadScan{index, scan});
-              });
-          scans_.Close();
-        }) {}
-  ~BagReadAhead() {
-    scans_.Close();
-    if (thread_.joinable()) thread_.join();
-  }
-  BagReadAhead(const BagReadAhead&) = delete;
-  BagReadAhead& operator=(const BagReadAhead&) = delete;
-
-  /// The next scan in bag order: if read already (wait = false) or once it is (wait = true);
-  /// nullopt with wait once the reading ended (the bag's end, max_scans, or an error that
-  /// Finish returns).
-  std::optional<ReadScan> Next(bool wait) { return scans_.Pop(wait); }
-  /// Waits for the reading to end; its outcome (an error for an unreadable bag).
-  core::Status Finish() {
-    if (thread_.joinable()) thread_.join();
-    return status_;
-  }
-
- private:
-  core::BoundedQueue<ReadScan> scans_;
-  core::Status status_ = core::Status::Ok();  // written by the thread, read after the join
-  std::thread thread_;                         // last: starts once the members above exist
-};
 
 int UsageError(const std::string& message) {
   std::fprintf(stderr, "offline_mapper: %s\n%s", message.c_str(), kUsage);
@@ -315,10 +269,10 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
     // read so far (up to its queue) and builds from its results, waiting only when it has
     // nothing else to do.
     const std::size_t queue = static_cast<std::size_t>(options.odometry_queue);
-    BagReadAhead bag(&reader.value(), kReadAheadScans, max_scans);
+    msm::conversions::BagReadAhead bag(&reader.value(), kReadAheadScans, max_scans);
     const auto feed_read = [&] {  // the scans read so far, as far as the odometry takes them
       while (odometry.value()->pending() < queue) {
-        std::optional<ReadScan> next = bag.Next(false);
+        std::optional<msm::conversions::ReadScan> next = bag.Next(false);
         if (!next) break;
         feed(std::move(next->scan), next->index);
       }
@@ -333,7 +287,7 @@ int MapSession(const Options& options, const std::string& bag_path, const std::s
               odometry.value()->Pop(true);
           feed_read();  // what was read while this thread waited, before a long build
           if (waited) build(std::move(*waited));
-        } else if (std::optional<ReadScan> next = bag.Next(true)) {
+        } else if (std::optional<msm::conversions::ReadScan> next = bag.Next(true)) {
           feed(std::move(next->scan), next->index);
         } else {
           break;  // all read and built
