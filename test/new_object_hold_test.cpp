@@ -125,6 +125,28 @@ TEST(NewObjectHoldTest, ANewFaceOfAnObjectTheHistoryKeepsIsAdded) {
   EXPECT_EQ(CountHeld(r.value(), 0, candidates.size()), static_cast<int>(candidates.size()));
 }
 
+// The attach test's reach is exact: a 2 m bar of new points 0.49 m above the ground, and a
+// history bar above the ground offset diagonally (in y and z, across the 0.5 m voxels the
+// hold looks in) by 0.34 m each way (0.481 m: within attach_radius_m, the bar is added) or by
+// 0.36 m (0.509 m: beyond it, held back).
+TEST(NewObjectHoldTest, HistoryPointsJustWithinTheAttachRadiusAttach) {
+  for (const double offset : {0.34, 0.36}) {
+    PointVector history_points;
+    AddGround(-3.0, 5.0, -3.0, 3.0, &history_points);
+    PointVector candidates;
+    for (double x = 0.0; x <= 2.0 + 1e-9; x += 0.2) {
+      candidates.emplace_back(x, 0.49, 0.49);
+      history_points.emplace_back(x, 0.49 + offset, 0.49 + offset);
+    }
+    std::vector<PlacedPoints> history = {{&history_points, Pose3::Identity()}};
+    StatusOr<NewObjectHoldResult> r =
+        HoldBackNewObjects(NewObjectHoldConfig(), candidates, history, PointVector());
+    ASSERT_TRUE(r.ok());
+    const int expected = offset < 0.35 ? 0 : static_cast<int>(candidates.size());
+    EXPECT_EQ(CountHeld(r.value(), 0, candidates.size()), expected) << offset;
+  }
+}
+
 // New structure that is not of a movable object's shape is added: a 6 m high facade, a 14 m
 // long hedge, and a crown floating 2 m above the ground.
 TEST(NewObjectHoldTest, StructureOfOtherShapesIsAdded) {

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "multisession_mapper/core/point_index.h"
+#include "multisession_mapper/core/voxel_occupancy.h"
 
 namespace multisession_mapper {
 namespace core {
@@ -128,7 +129,9 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
                             std::max(config.attach_radius_m, config.seen_margin_m) /
                             config.ground_cell_m));
   for (const Eigen::Vector3d& p : candidates_m) cells.AddRegion(p, reach);
-  PointVector history_near;  // history points of the region, map frame
+  // History points of the region (map frame) with their cells.
+  PointVector history_near;
+  std::vector<CellMap::Cell*> history_near_cell;
   for (const PlacedPoints& h : history) {
     if (h.points == nullptr) continue;
     for (const Eigen::Vector3d& q : *h.points) {
@@ -138,6 +141,7 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
       if (cell == nullptr) continue;
       cell->lowest = std::min(cell->lowest, static_cast<float>(p.z()));
       history_near.push_back(p);
+      history_near_cell.push_back(cell);
     }
   }
   for (const Eigen::Vector3d& p : removed_m) {
@@ -153,11 +157,12 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
   cells.FinishGround();
 
   PointVector history_above;
-  for (const Eigen::Vector3d& p : history_near) {
-    if (cells.HeightAbove(p) > config.ground_tolerance_m) {
-      history_above.push_back(p);
+  for (std::size_t i = 0; i < history_near.size(); ++i) {
+    CellMap::Cell* cell = history_near_cell[i];
+    if (static_cast<float>(history_near[i].z()) - cell->ground > config.ground_tolerance_m) {
+      history_above.push_back(history_near[i]);
     } else {
-      ++cells.Find(p)->seen_points;
+      ++cell->seen_points;
     }
   }
   PointVector above;
@@ -172,11 +177,15 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
     }
   }
   if (above.empty()) return result;
-  StatusOr<PointIndex> attach_index = PointIndex::Create(std::move(history_above));
-  if (!attach_index.ok()) return attach_index.status();
   StatusOr<PointIndex> group_index = PointIndex::Create(above);
   if (!group_index.ok()) return group_index.status();
 
+  // The groups with the shape of a movable object, in the order of their first point.
+  struct Group {
+    std::vector<std::uint32_t> points;  // into above
+    Eigen::Vector2d lo, hi;             // horizontal bounding box
+  };
+  std::vector<Group> shaped;
   std::vector<std::uint8_t> taken(above.size(), 0);
   std::vector<std::uint32_t> group, neighbours;
   for (std::size_t seed = 0; seed < above.size(); ++seed) {
@@ -194,22 +203,48 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
     if (group.size() < static_cast<std::size_t>(config.min_points)) continue;
     Eigen::Vector2d lo = above[group.front()].head<2>(), hi = lo;
     float bottom = std::numeric_limits<float>::infinity(), top = -bottom;
-    std::size_t attached = 0;
     for (std::uint32_t i : group) {
       lo = lo.cwiseMin(above[i].head<2>());
       hi = hi.cwiseMax(above[i].head<2>());
       bottom = std::min(bottom, above_height[i]);
       top = std::max(top, above_height[i]);
-      attached += attach_index.value().CountWithin(above[i], config.attach_radius_m, 1);
     }
     if ((hi - lo).norm() > config.max_extent_m || top > config.max_top_m ||
         bottom > config.max_bottom_m) {
       continue;
     }
-    if (static_cast<double>(attached) > config.max_attached_fraction * group.size()) continue;
-    const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config.seen_margin_m);
-    if (cells.SeenPointsIn(lo - margin, hi + margin) < config.min_seen_points) continue;
-    for (std::uint32_t i : group) result.held[above_candidate[i]] = 1;
+    shaped.push_back({group, lo, hi});
+  }
+  if (shaped.empty()) return result;
+
+  // Alone: only the history points within attach_radius_m of a shaped group's point can count,
+  // those in its voxels of that edge or the 26 around (the edge a hair longer than the radius
+  // against rounding). Same answers from a much smaller index (seed-1 s01 merge: the index
+  // over all history points above the ground took ~1.9 s of the hold's ~4.2 s).
+  const double reach_voxel_m = config.attach_radius_m * (1.0 + 1e-6);
+  VoxelOccupancy group_voxels(reach_voxel_m);
+  VoxelOccupancy attach_reach(reach_voxel_m);
+  for (const Group& g : shaped) {
+    for (std::uint32_t i : g.points) {
+      if (group_voxels.Occupied(above[i])) continue;
+      group_voxels.Add(above[i]);
+      attach_reach.AddWithNeighbours(above[i]);
+    }
+  }
+  const auto out_of_reach = [&](const Eigen::Vector3d& p) { return !attach_reach.Occupied(p); };
+  history_above.erase(std::remove_if(history_above.begin(), history_above.end(), out_of_reach),
+                      history_above.end());
+  StatusOr<PointIndex> attach_index = PointIndex::Create(std::move(history_above));
+  if (!attach_index.ok()) return attach_index.status();
+  const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config.seen_margin_m);
+  for (const Group& g : shaped) {
+    std::size_t attached = 0;
+    for (std::uint32_t i : g.points) {
+      attached += attach_index.value().CountWithin(above[i], config.attach_radius_m, 1);
+    }
+    if (static_cast<double>(attached) > config.max_attached_fraction * g.points.size()) continue;
+    if (cells.SeenPointsIn(g.lo - margin, g.hi + margin) < config.min_seen_points) continue;
+    for (std::uint32_t i : g.points) result.held[above_candidate[i]] = 1;
     ++result.groups_held;
   }
   return result;
