@@ -219,9 +219,10 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
 
   // Alone: only the history points within attach_radius_m of a shaped group's point can count,
   // those in its voxels of that edge or the 26 around (the edge a hair longer than the radius
-  // against rounding). Same answers from a much smaller index (seed-1 s01 merge: the index
-  // over all history points above the ground took ~1.9 s of the hold's ~4.2 s).
-  const double reach_voxel_m = config.attach_radius_m * (1.0 + 1e-6);
+  // against rounding, and at least 5 cm: integer voxel keys far from the origin). Same answers
+  // from a much smaller index (seed-1 s01 merge: the index over all history points above the
+  // ground took ~1.9 s of the hold's ~4.2 s).
+  const double reach_voxel_m = std::max(config.attach_radius_m * (1.0 + 1e-6), 0.05);
   VoxelOccupancy group_voxels(reach_voxel_m);
   VoxelOccupancy attach_reach(reach_voxel_m);
   for (const Group& g : shaped) {
