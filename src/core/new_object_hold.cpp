@@ -213,7 +213,7 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
         bottom > config.max_bottom_m) {
       continue;
     }
-    shaped.push_back({group, lo, hi});
+    shaped.push_back({std::move(group), lo, hi});  // (group is assigned afresh above)
   }
   if (shaped.empty()) return result;
 
