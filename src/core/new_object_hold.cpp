@@ -156,14 +156,12 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
   }
   cells.FinishGround();
 
-  PointVector history_above;
+  const auto history_is_above = [&](std::size_t i) {
+    return static_cast<float>(history_near[i].z()) - history_near_cell[i]->ground >
+           config.ground_tolerance_m;
+  };
   for (std::size_t i = 0; i < history_near.size(); ++i) {
-    CellMap::Cell* cell = history_near_cell[i];
-    if (static_cast<float>(history_near[i].z()) - cell->ground > config.ground_tolerance_m) {
-      history_above.push_back(history_near[i]);
-    } else {
-      ++cell->seen_points;
-    }
+    if (!history_is_above(i)) ++history_near_cell[i]->seen_points;
   }
   PointVector above;
   std::vector<std::uint32_t> above_candidate;  // index into candidates_m
@@ -232,9 +230,12 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
       attach_reach.AddWithNeighbours(above[i]);
     }
   }
-  const auto out_of_reach = [&](const Eigen::Vector3d& p) { return !attach_reach.Occupied(p); };
-  history_above.erase(std::remove_if(history_above.begin(), history_above.end(), out_of_reach),
-                      history_above.end());
+  PointVector history_above;  // within that reach
+  for (std::size_t i = 0; i < history_near.size(); ++i) {
+    if (history_is_above(i) && attach_reach.Occupied(history_near[i])) {
+      history_above.push_back(history_near[i]);
+    }
+  }
   StatusOr<PointIndex> attach_index = PointIndex::Create(std::move(history_above));
   if (!attach_index.ok()) return attach_index.status();
   const Eigen::Vector2d margin = Eigen::Vector2d::Constant(config.seen_margin_m);

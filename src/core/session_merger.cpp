@@ -582,9 +582,10 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
   VoxelOccupancy fine_grid(use_fine ? fc.fine_voxel_m : fc.voxel_m);
   // Every point of the map goes into each: one grid per thread, the fine grid (the largest,
   // ~2.3 s of ~3.2 s on the seed-1 s01 merge) first so that the other two share a thread.
-  ParallelFor(use_fine ? 3 : 2, config_.num_threads, [&](std::size_t g) {
-    VoxelOccupancy& grid = use_fine ? (g == 0 ? fine_grid : (g == 1 ? fusion_grid : overlap_grid))
-                                    : (g == 0 ? fusion_grid : overlap_grid);
+  VoxelOccupancy* const grids[] = {&fine_grid, &fusion_grid, &overlap_grid};
+  const std::size_t first_grid = use_fine ? 0 : 1;
+  ParallelFor(3 - first_grid, config_.num_threads, [&](std::size_t g) {
+    VoxelOccupancy& grid = *grids[first_grid + g];
     for (std::size_t h = 0; h < map->submaps.size(); ++h) {
       const Pose3 T = pose_of_history(h);
       for (const Eigen::Vector3d& p : history_points[h]) grid.Add(T * p);
