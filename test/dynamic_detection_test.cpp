@@ -752,6 +752,54 @@ TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
   EXPECT_GE(low, 0.9 * kPatchPoints);
 }
 
+// Step 2 grows the common parts over whole surfaces: a wall that the history saw only in
+// part (y <= 0) and the current session saw to y = 2.9 m is one surface, so the current's rest of
+// it joins the common part through the chain of compatible neighbours, also where no history
+// point is within reach of a seed (y > 0.45 m; the wall starts 0.7 m above the ground).
+TEST(DynamicDetectionTest, CommonPartsGrowOverTheWholeOfASurface) {
+  const auto make = [](double wall_end_y) {
+    Submap submap;
+    for (double x = 0.0; x <= 8.0 + 1e-9; x += 0.1) {
+      for (double y = -5.0; y <= 5.0 + 1e-9; y += 0.1) submap.points.emplace_back(x, y, 0.0);
+    }
+    // (A last column alone in its 0.6 m normal voxel would be a line, not a plane.)
+    for (int column = 0; -3.0 + 0.1 * column <= wall_end_y + 1e-9; ++column) {
+      for (int row = 0; row <= 13; ++row) {
+        submap.points.emplace_back(6.05, -3.0 + 0.1 * column, 0.7 + 0.1 * row);
+      }
+    }
+    for (double y = -3.0; y <= 3.0 + 1e-9; y += 1.0) {
+      SubmapScanRecord record;
+      record.T_submap_sensor = Pose3(Eigen::Translation3d(0.0, y, 1.5));
+      submap.scans.push_back(record);
+    }
+    return submap;
+  };
+  const Submap history = make(0.0);
+  const Submap current = make(2.9);
+  StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());
+  ASSERT_TRUE(detector.ok());
+  const StatusOr<DynamicDetectionResult> result =
+      detector.value().Detect(history, current, Pose3::Identity());
+  ASSERT_TRUE(result.ok()) << result.status().message();
+  const double seed_distance_m = DynamicDetectionConfig().seed_distance_m;
+  std::size_t beyond_seeds = 0, beyond_reach = 0;  // current wall points without a partner
+  for (const Eigen::Vector3d& p : current.points) {
+    if (p.z() <= 0.0) continue;
+    beyond_seeds += p.y() > seed_distance_m + 1e-6;
+    beyond_reach += p.y() > 0.45 + 1e-6;
+  }
+  std::printf("current wall points without a partner %zu (%zu beyond a seed's reach), grown %zu"
+              "; history grown %zu\n",
+              beyond_seeds, beyond_reach, result.value().common_grown[1],
+              result.value().common_grown[0]);
+  ASSERT_GT(beyond_reach, 300u);
+  EXPECT_EQ(result.value().common_grown[1], beyond_seeds);
+  EXPECT_EQ(result.value().common_grown[0], 0u);  // every history point has its twin: seeds
+  EXPECT_TRUE(result.value().history_dynamic.empty());
+  EXPECT_TRUE(result.value().current_dynamic.empty());
+}
+
 TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   DynamicDetectionConfig config;
   config.voxel_size_m = 0.0;

@@ -721,30 +721,36 @@ class PairDetection {
   }
 
   // Region growing from the seeds over points with compatible normals. Only points that are
-  // not seeds are searched from: their common neighbours start the growth.
+  // not seeds are searched from: their common neighbours start the growth. The grown set is
+  // every non-seed point joined to a seed by a chain of compatible neighbours, whatever the
+  // order; so a point that joins spreads at once, with the neighbours of its own search, and
+  // the points it reaches skip theirs (each grown point is searched once, not twice).
   void GrowCommon(int s) {
     Side& side = sides_[s];
     cos_max_angle_ = static_cast<float>(std::cos(config_.grow_max_normal_angle_rad));
+    const auto take = [&](std::uint32_t i, std::uint32_t j) {
+      if (side.common[j] || !Compatible(s, i, j)) return false;
+      side.common[j] = 2;  // grown (2) rather than seed (1): no effect beyond bookkeeping
+      return true;
+    };
     std::vector<std::uint32_t> neighbours;
     std::deque<std::uint32_t> queue;
-    for (std::size_t i = 0; i < side.points.size(); ++i) {
+    for (std::size_t n = 0; n < side.points.size(); ++n) {
+      const auto i = static_cast<std::uint32_t>(n);
       if (side.common[i] || side.no_seed_near[i]) continue;
       indices_[s]->Radius(side.points[i], config_.grow_radius_m, &neighbours);
-      for (std::uint32_t j : neighbours) {
-        if (side.common[j] == 1 && Compatible(s, static_cast<std::uint32_t>(i), j)) {
-          side.common[i] = 2;  // grown (2) rather than seed (1): no effect beyond bookkeeping
-          queue.push_back(static_cast<std::uint32_t>(i));
-          break;
-        }
+      if (std::none_of(neighbours.begin(), neighbours.end(), [&](std::uint32_t j) {
+            return side.common[j] == 1 && Compatible(s, i, j);
+          })) {
+        continue;
       }
+      side.common[i] = 2;
+      queue.clear();
+      for (std::uint32_t j : neighbours) {
+        if (take(i, j)) queue.push_back(j);
+      }
+      Spread(s, std::move(queue), config_.grow_radius_m, take, nullptr);
     }
-    Spread(s, std::move(queue), config_.grow_radius_m,
-           [&](std::uint32_t i, std::uint32_t j) {
-             if (side.common[j] || !Compatible(s, i, j)) return false;
-             side.common[j] = 2;
-             return true;
-           },
-           nullptr);
   }
 
   // Whether a ray of side s (unit direction) meets the plane of the other side's point that
@@ -1111,6 +1117,10 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   pair.EstimateGround();
   clock(&stage.ground_s);
   pair.FindCommonParts();
+  for (int s : {kHistory, kCurrent}) {
+    result.common_grown[s] = static_cast<std::size_t>(
+        std::count(sides[s].common.begin(), sides[s].common.end(), std::uint8_t{2}));
+  }
   clock(&stage.common_s);
   const Status cast = pair.CastRays();
   if (!cast.ok()) return cast;

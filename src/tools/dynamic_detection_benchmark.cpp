@@ -471,6 +471,7 @@ int main(int argc, char** argv) {
     using StageTimes = core::DynamicDetectionResult::StageTimes;
     std::vector<double> stage_times[StageTimes::kCount];
     std::size_t mending = 0;
+    std::size_t grown[2] = {0, 0};  // points grown into the common parts, summed over pairs
     struct Examined {
       core::DynamicDetectionResult::ExaminedObject object;
       std::size_t submap;
@@ -510,6 +511,7 @@ int main(int argc, char** argv) {
         for (std::uint32_t i : object.points) marks[i] |= object.changed ? 32 | 64 : 32;
       }
       mending += result.value().current_mending.size();
+      for (int s = 0; s < 2; ++s) grown[s] += result.value().common_grown[s];
       for (std::uint32_t i : result.value().history_dynamic) flags[0][h][i] |= 1;
       for (std::uint32_t i : result.value().current_dynamic) flags[1][c][i] |= 1;
       // Paired / observed / near flags, in the world frame.
@@ -701,10 +703,11 @@ int main(int argc, char** argv) {
                 high, high_removed, unlabelled);
     const double max_time = times.empty() ? 0.0 : *std::max_element(times.begin(), times.end());
     std::printf("  time per pair: median %.3f s, max %.3f s over %zu pairs (wall); CPU time "
-                "median %.3f s, max %.3f s; mending %zu points\n",
+                "median %.3f s, max %.3f s; mending %zu points; grown into the common parts: "
+                "%zu history, %zu current points\n",
                 Median(times), max_time, times.size(), Median(cpu_times),
                 cpu_times.empty() ? 0.0 : *std::max_element(cpu_times.begin(), cpu_times.end()),
-                mending);
+                mending, grown[0], grown[1]);
     std::printf("    median per step [ms]:");
     const auto names = StageTimes().Named();
     for (int k = 0; k < StageTimes::kCount; ++k) {

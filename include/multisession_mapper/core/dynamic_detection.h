@@ -282,6 +282,9 @@ struct DynamicDetectionResult {
     bool by_partner = false;  ///< changed as the partner of an object changed on the other side
   };
   std::vector<ExaminedObject> examined_objects;
+  /// Points of each submap ([0] history, [1] current) that the region growing of step 2 added
+  /// to the common parts (seeds not counted), for diagnosis.
+  std::array<std::size_t, 2> common_grown{};
   double time_s = 0.0;  ///< wall time of the whole detection [s]
   /// Wall time of each step [s] (their sum is time_s up to bookkeeping), for benchmarks:
   /// neighbour indices built here, ground grid, common parts (seeds and region growing),
