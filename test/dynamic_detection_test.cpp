@@ -753,9 +753,10 @@ TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
 }
 
 // Step 2 grows the common parts over whole surfaces: a wall that the history saw only in
-// part (y <= 0) and the current session saw to y = 2.9 m is one surface, so the current's rest of
-// it joins the common part through the chain of compatible neighbours, also where no history
-// point is within reach of a seed (y > 0.45 m; the wall starts 0.7 m above the ground).
+// part (y <= 0) and the current session saw to y = 2.9 m is one surface, so the current's rest
+// of it joins the common part through the chain of compatible neighbours, also where no
+// history point is within a seed's reach (seed distance + grow radius: y > 0.45 m; the wall
+// starts 0.7 m above the ground, beyond that reach of the history's ground).
 TEST(DynamicDetectionTest, CommonPartsGrowOverTheWholeOfASurface) {
   const auto make = [](double wall_end_y) {
     Submap submap;
@@ -782,12 +783,14 @@ TEST(DynamicDetectionTest, CommonPartsGrowOverTheWholeOfASurface) {
   const StatusOr<DynamicDetectionResult> result =
       detector.value().Detect(history, current, Pose3::Identity());
   ASSERT_TRUE(result.ok()) << result.status().message();
-  const double seed_distance_m = DynamicDetectionConfig().seed_distance_m;
+  const DynamicDetectionConfig defaults;
+  const double reach_m = defaults.seed_distance_m + defaults.grow_radius_m;
+  ASSERT_LT(reach_m, 0.7);  // the wall's bottom row stays out of reach of the ground
   std::size_t beyond_seeds = 0, beyond_reach = 0;  // current wall points without a partner
   for (const Eigen::Vector3d& p : current.points) {
     if (p.z() <= 0.0) continue;
-    beyond_seeds += p.y() > seed_distance_m + 1e-6;
-    beyond_reach += p.y() > 0.45 + 1e-6;
+    beyond_seeds += p.y() > defaults.seed_distance_m + 1e-6;
+    beyond_reach += p.y() > reach_m + 1e-6;
   }
   std::printf("current wall points without a partner %zu (%zu beyond a seed's reach), grown %zu"
               "; history grown %zu\n",
