@@ -70,8 +70,11 @@ class CellMap {
   }
   float HeightAbove(const Eigen::Vector3d& p) {
     const Cell* cell = Find(p);
-    return cell == nullptr ? std::numeric_limits<float>::infinity()
-                           : static_cast<float>(p.z()) - cell->ground;
+    return cell == nullptr ? std::numeric_limits<float>::infinity() : HeightAbove(p, *cell);
+  }
+  // The same for a point whose cell was looked up before.
+  static float HeightAbove(const Eigen::Vector3d& p, const Cell& cell) {
+    return static_cast<float>(p.z()) - cell.ground;
   }
   // Seen points in the cells that overlap the box [lo, hi].
   long SeenPointsIn(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) const {
@@ -157,7 +160,7 @@ StatusOr<NewObjectHoldResult> HoldBackNewObjects(const NewObjectHoldConfig& conf
   cells.FinishGround();
 
   const auto history_is_above = [&](std::size_t i) {
-    return static_cast<float>(history_near[i].z()) - history_near_cell[i]->ground >
+    return CellMap::HeightAbove(history_near[i], *history_near_cell[i]) >
            config.ground_tolerance_m;
   };
   for (std::size_t i = 0; i < history_near.size(); ++i) {
