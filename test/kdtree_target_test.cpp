@@ -102,6 +102,50 @@ TEST(KdTreeTargetTest, WarmStartedFindMatchesGivesTheColdMatches) {
   EXPECT_GT(changed, 200);
 }
 
+TEST(KdTreeTargetTest, WarmStartedMissesGiveTheColdAnswersAsTheyMoveIntoReach) {
+  // Queries that start without a match keep, as misses, how far their nearest point was, and
+  // are not searched again while they moved too little to reach one. They walk towards the
+  // cloud in steps of 0.05-0.6 m (an ICP's searches), some jittering on the spot, and after
+  // each step every answer must be the cold one.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  std::uniform_real_distribution<double> step_length(0.05, 0.6);
+  std::normal_distribution<double> jitter(0.0, 0.05);
+  const KdTreeTarget target = KdTreeTarget::Create(RandomCloud(&rng)).value();
+  PointVector queries, velocity;
+  for (int q = 0; q < 1500; ++q) {
+    const Eigen::Vector3d start(1.6 * u(rng), 1.6 * u(rng), 1.6 * u(rng));
+    queries.push_back(start);
+    velocity.push_back(q % 3 == 0 ? Eigen::Vector3d::Zero()
+                                  : Eigen::Vector3d(-start.normalized() * step_length(rng)));
+  }
+  std::vector<std::uint8_t> found;
+  std::vector<TargetMatch> matches;
+  int misses = 0, became_hits = 0;
+  std::vector<std::uint8_t> was_hit(queries.size(), 0);
+  for (int search = 0; search < 25; ++search) {
+    target.FindMatches(queries, 1.0, /*warm_start=*/search > 0, nullptr, &found, &matches);
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      TargetMatch cold;
+      const bool ok = target.FindMatch(queries[i], 1.0, &cold);
+      ASSERT_EQ(found[i] != 0, ok) << "search " << search << " query " << i;
+      if (!ok) {
+        ++misses;
+        continue;
+      }
+      if (!was_hit[i] && search > 0) ++became_hits;
+      was_hit[i] = 1;
+      EXPECT_EQ(matches[i].point, cold.point);
+      EXPECT_EQ(matches[i].distance_sq, cold.distance_sq);
+    }
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      queries[i] += velocity[i] + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+    }
+  }
+  EXPECT_GT(misses, 5000);
+  EXPECT_GT(became_hits, 200);
+}
+
 TEST(KdTreeTargetTest, WallPointsGetWallNormals) {
   PointVector pts;
   for (double y = -5.0; y <= 5.0; y += 0.2) {

@@ -28,6 +28,11 @@ Status KdTreeTargetConfig::Validate() const {
 
 using Tree = PointVectorKdTree<std::size_t>;
 
+// A query without a match within the correspondence distance d is searched within
+// (1 + this) * d, so that while it moves less than the margin it needs no search again (see
+// FindMatches).
+constexpr double kMissReachFraction = 0.25;
+
 // Normals are computed on first use: an ICP matches a small part of a submap's points (a
 // 1.5 m source against a 0.3 m target), and fitting all of them made the fine target of a
 // `campus` submap cost 0.06-0.17 s, most of a history submap's preparation for the global
@@ -148,14 +153,45 @@ void KdTreeTarget::FindMatches(const PointVector& queries, double max_distance_m
                                std::vector<TargetMatch>* matches) const {
   const std::size_t n = queries.size();
   const bool hints = warm_start && found->size() == n && matches->size() == n;
-  if (!hints) found->assign(n, 0);
-  matches->resize(n);
+  if (!hints) {
+    found->assign(n, 0);
+    matches->assign(n, TargetMatch());  // no memo of a miss either (distance_sq 0)
+  }
   const double max_sq = max_distance_m * max_distance_m;
+  const double reach = max_distance_m * (1.0 + kMissReachFraction);
+  const double reach_sq = reach * reach;
   for (std::size_t i = 0; i < n; ++i) {
-    const bool previous = hints && (*found)[i] != 0;
-    const double bound_sq =
-        WarmStartBoundSq(previous ? &(*matches)[i] : nullptr, queries[i], max_sq);
-    (*found)[i] = MatchWithin(queries[i], bound_sq, &(*matches)[i]) ? 1 : 0;
+    TargetMatch& match = (*matches)[i];
+    if ((*found)[i] != 0 && hints) {
+      (*found)[i] = MatchWithin(queries[i], WarmStartBoundSq(&match, queries[i], max_sq), &match)
+                        ? 1
+                        : 0;
+      if ((*found)[i] != 0) continue;
+      match = TargetMatch();  // its match moved beyond max_distance_m: a miss now
+    }
+    // A miss remembers, in its unused match, where it was searched and how far the nearest
+    // point was at least (the distance found within `reach`, or `reach`). Moved by less than
+    // that bound minus max_distance_m, it still has no point within max_distance_m (triangle
+    // inequality; 1e-9 m for rounding): no search. Otherwise it is searched within `reach`,
+    // which finds its match, if any, as a search within max_distance_m does (the nearest
+    // point is the nearest point), and the new bound.
+    if (hints && match.distance_sq > 0.0) {
+      const double bound = std::sqrt(match.distance_sq);
+      if (bound - (queries[i] - match.point).norm() > max_distance_m + 1e-9) continue;
+    }
+    std::size_t index = 0;
+    double dist_sq = 0.0;
+    if (NearestWithinSq(queries[i], reach_sq, &index, &dist_sq) && dist_sq <= max_sq) {
+      (*found)[i] = 1;
+      match.point = impl_->points[index];
+      match.distance_sq = dist_sq;
+      match.has_normal = impl_->NormalAt(index, &match.normal);
+      continue;
+    }
+    (*found)[i] = 0;
+    match = TargetMatch();
+    match.point = queries[i];
+    match.distance_sq = dist_sq > max_sq ? dist_sq : reach_sq;  // dist_sq 0: none in reach
   }
 }
 

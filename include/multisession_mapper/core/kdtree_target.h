@@ -44,7 +44,12 @@ class KdTreeTarget : public RegistrationTarget {
   bool FindMatch(const Eigen::Vector3d& query, double max_distance_m,
                  TargetMatch* match) const override;
   /// FindMatch per query; with `warm_start` each query's search is bounded by the distance to
-  /// its previous match (WarmStartBoundSq): same results, fewer tree branches. `pool` unused.
+  /// its previous match (WarmStartBoundSq), and a query without a match is not searched again
+  /// while it has moved too little to reach a point within `max_distance_m` (its unused entry
+  /// of `matches` keeps where it was searched and how far its nearest point was at least; it
+  /// is searched a quarter farther for that). Same results, fewer tree branches: submap ICP's
+  /// fine stage 0.146 -> 0.141 s per pair median and the slowest pair 1.15 -> 1.03 s
+  /// (global_registration_benchmark, campus seed-1 s00 map, alternating runs). `pool` unused.
   void FindMatches(const PointVector& queries, double max_distance_m, bool warm_start,
                    WorkerPool* pool, std::vector<std::uint8_t>* found,
                    std::vector<TargetMatch>* matches) const override;
