@@ -188,7 +188,8 @@ TEST(FpfhFeaturesTest, FeaturesDoNotChangeUnderARigidMotion) {
   }
   std::vector<std::uint8_t> defined, moved_defined;
   const std::vector<float> a = ComputeFpfh(points, normals, 2.5, &defined).value();
-  const std::vector<float> b = ComputeFpfh(moved_points, moved_normals, 2.5, &moved_defined).value();
+  const std::vector<float> b =
+      ComputeFpfh(moved_points, moved_normals, 2.5, &moved_defined).value();
   ASSERT_EQ(defined, moved_defined);
   std::vector<double> l1;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -221,7 +222,8 @@ TEST(FpfhFeaturesTest, FeaturesOfOthersIgnoreThePointsWithoutANormal) {
   for (std::size_t i = 0; i < points.size(); ++i) {
     ASSERT_EQ(defined[i], extra_defined[i]) << "point " << i;
     for (int k = 0; k < kFpfhBins; ++k) {  // the kd-tree (and so the order of sums) differs
-      ASSERT_NEAR(a[i * kFpfhBins + k], b[i * kFpfhBins + k], 1e-3) << "point " << i << " bin " << k;
+      ASSERT_NEAR(a[i * kFpfhBins + k], b[i * kFpfhBins + k], 1e-3)
+          << "point " << i << " bin " << k;
     }
   }
 }
@@ -268,6 +270,7 @@ TEST(FpfhFeaturesTest, RejectsBadInput) {
   PointVector bad = points;
   bad[1].x() = std::nan("");
   EXPECT_FALSE(ComputeFpfh(bad, two, 1.0, &defined).ok());
+  EXPECT_FALSE(ComputeFpfh(points, two, 1.0, nullptr).ok());
 }
 
 }  // namespace

@@ -91,6 +91,7 @@ StatusOr<std::vector<float>> ComputeFpfh(const PointVector& points,
   if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
     return Status::Error("fpfh: radius must be > 0");
   }
+  if (defined == nullptr) return Status::Error("fpfh: no output for the defined flags");
   StatusOr<PointIndex> index = PointIndex::Create(points);
   if (!index.ok()) return Status::Error("fpfh: " + index.status().message());
   const std::size_t n = points.size();
@@ -124,8 +125,8 @@ StatusOr<std::vector<float>> ComputeFpfh(const PointVector& points,
     first[i + 1] = neighbour.size();
   }
 
-  // SPFH: each pair once (twice on a tie), its bins counted for both ends. PCL's increment is 100 over the
-  // number of neighbours, whether or not their pair features exist.
+  // SPFH: each pair once (twice on a tie), its bins counted for both ends. PCL's increment is
+  // 100 over the number of neighbours, whether or not their pair features exist.
   std::vector<std::uint32_t> counts(n * kFpfhBins, 0);
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t k = first[i]; k < first[i + 1]; ++k) {

@@ -118,6 +118,8 @@ class FeatureIndex {
   Tree tree_;
 };
 
+static_assert(FeatureIndex::kDim == kFpfhBins, "feature rows are FPFH histograms");
+
 // The coarse cloud of one submap: downsampled, cropped, with PCL normals and FPFH features.
 struct CoarseCloud {
   PointVector points;

@@ -38,10 +38,11 @@ constexpr int kFpfhBins = 3 * kFpfhBinsPerAngle;
 
 /// FPFH of every point of `points` over its neighbours within `radius_m` [m] (> 0).
 /// `normals[i]` is the unit normal of points[i]; a zero or non-finite one marks a point
-/// without a normal, left out. Returns size() * kFpfhBins floats, row i the histogram of point i (each
-/// block of 11 sums to 100). `defined[i]` is 1 when point i has a normal and its histogram is
-/// defined (some neighbour with a normal within the radius), 0 otherwise (its row is zero).
-/// Fails on size mismatch, a non-positive radius or a non-finite point.
+/// without a normal, left out. Returns size() * kFpfhBins floats, row i the histogram of
+/// point i (each block of 11 sums to 100). `defined[i]` is 1 when point i has a normal and its
+/// histogram is defined (some neighbour with a normal within the radius), 0 otherwise (its
+/// row is zero). Fails on size mismatch, a non-positive radius, a non-finite point or a null
+/// `defined`.
 StatusOr<std::vector<float>> ComputeFpfh(const PointVector& points,
                                          const std::vector<Eigen::Vector3d>& normals,
                                          double radius_m, std::vector<std::uint8_t>* defined);
