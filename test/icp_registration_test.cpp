@@ -155,6 +155,31 @@ TEST(IcpRegistrationTest, ReassociationSearchesLessAndLandsOnTheSamePose) {
   EXPECT_FALSE(config.Validate().ok());
 }
 
+// A schedule of correspondence distances with the searches' memory carried from one distance
+// to the next (SubmapRegistration does so): every distance's first search is warm-started,
+// and each stage lands on the pose it lands on without the memory, to the bit.
+TEST(IcpRegistrationTest, SearchMemoryAcrossAScheduleGivesTheSamePoses) {
+  const SyntheticPair pair = MakePair();
+  const KdTreeTarget target = KdTreeTarget::Create(VoxelDownsample(pair.target, 0.2)).value();
+  const PointVector source = VoxelDownsample(pair.source, 0.3);
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  Pose3 cold = Pose3::Identity(), warm = Pose3::Identity();
+  IcpSearchMemory memory;
+  for (const double distance : {3.0, 1.0, 0.5}) {
+    const StatusOr<IcpResult> a = icp.Register(source, target, cold, distance, distance / 3.0);
+    const StatusOr<IcpResult> b =
+        icp.Register(source, target, warm, distance, distance / 3.0, &memory);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a.value().pose.matrix(), b.value().pose.matrix()) << "distance " << distance;
+    EXPECT_EQ(a.value().searches, b.value().searches);
+    EXPECT_EQ(a.value().num_inliers, b.value().num_inliers);
+    ASSERT_EQ(memory.found.size(), source.size());  // holds this stage's last search
+    cold = a.value().pose;
+    warm = b.value().pose;
+  }
+  ExpectPoseNear(warm, pair.T_a_b, 0.02, 0.1 * kDeg);
+}
+
 TEST(IcpRegistrationTest, SearchThreadsGiveTheSamePose) {
   const SyntheticPair pair = MakePair();
   VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();

@@ -112,6 +112,16 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
 }
 
 StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
+                                              const RegistrationTarget& target,
+                                              const Pose3& initial_guess,
+                                              double max_correspondence_distance_m,
+                                              double kernel_scale_m,
+                                              IcpSearchMemory* memory) const {
+  return RegisterImpl(source, nullptr, target, initial_guess, max_correspondence_distance_m,
+                      kernel_scale_m, IcpTranslationPrior(), memory);
+}
+
+StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const PointVector& source_normals,
                                               const RegistrationTarget& target,
                                               const Pose3& initial_guess,
@@ -132,7 +142,8 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
                                                   const Pose3& initial_guess,
                                                   double max_correspondence_distance_m,
                                                   double kernel_scale_m,
-                                                  const IcpTranslationPrior& prior) const {
+                                                  const IcpTranslationPrior& prior,
+                                                  IcpSearchMemory* memory) const {
   if (target.empty()) return Status::Error("icp: the target is empty");
   if (!(prior.weight >= 0.0) || !std::isfinite(prior.weight) || !prior.translation.allFinite()) {
     return Status::Error("icp: the translation prior needs a finite position and weight >= 0");
@@ -162,8 +173,12 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   std::vector<Pair> pairs_found;
   pairs_found.reserve(source.size());
   PointVector moved_source;          // the searched points at the pose of a search
-  std::vector<std::uint8_t> found;   // per searched point (k of `searched`): a match in reach
-  std::vector<TargetMatch> matches;  // per searched point: its match when found
+  // Per searched point (k of `searched`): a match in reach, and the match when found; in the
+  // caller's memory when given (the previous registration's last search: a warm first search).
+  IcpSearchMemory local;
+  IcpSearchMemory& memo = memory != nullptr ? *memory : local;
+  std::vector<std::uint8_t>& found = memo.found;
+  std::vector<TargetMatch>& matches = memo.matches;
   // The points that can pair: with point-to-plane on the source's own normals and no
   // point-to-point fallback, a point without a normal never enters the least squares, so it
   // is not searched either (the same pairs in the same order, so the same poses).
@@ -188,9 +203,10 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
       for (std::size_t k = 0; k < searched.size(); ++k) {
         moved_source[k] = pose * source[searched[k]];
       }
-      // From the second search on, the last search's matches bound this one (same pairs).
-      target.FindMatches(moved_source, max_correspondence_distance_m, result.searches > 0,
-                         pool_.get(), &found, &matches);
+      // From the second search on (or with a memory), the last search's matches bound this
+      // one (same pairs).
+      target.FindMatches(moved_source, max_correspondence_distance_m,
+                         result.searches > 0 || memory != nullptr, pool_.get(), &found, &matches);
       pairs_found.clear();
       for (std::size_t k = 0; k < searched.size(); ++k) {
         if (found[k] != 0) pairs_found.push_back({k, matches[k]});

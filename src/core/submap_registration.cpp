@@ -85,9 +85,12 @@ SubmapRegistrationResult SubmapRegistration::Register(const PointVector& source_
   SubmapRegistrationResult result;
   const PointVector source = VoxelDownsample(source_points, config_.source_voxel_m);
   Pose3 estimate = prior;
+  // Each distance's first search starts from the last one's matches (same results).
+  IcpSearchMemory memory;
   for (double distance : config_.correspondence_schedule_m) {
     StatusOr<IcpResult> icp = icp_.Register(source, target.tree(), estimate, distance,
-                                            std::min(config_.icp.kernel_scale_m, distance / 3.0));
+                                            std::min(config_.icp.kernel_scale_m, distance / 3.0),
+                                            &memory);
     if (!icp.ok()) {
       result.reason = "icp failed: " + icp.status().message();
       return result;

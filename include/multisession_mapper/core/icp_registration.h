@@ -32,7 +32,9 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -113,6 +115,16 @@ struct IcpResult {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
+/// The correspondences of a registration's last search, carried into the next registration
+/// of the same source against the same, unchanged target (the next correspondence distance of
+/// a schedule, SubmapRegistration): that registration's first search is then warm-started
+/// (RegistrationTarget::FindMatches) instead of cold, with the same results. Empty: a cold
+/// start.
+struct IcpSearchMemory {
+  std::vector<std::uint8_t> found;
+  std::vector<TargetMatch> matches;
+};
+
 class IcpRegistration {
  public:
   static StatusOr<IcpRegistration> Create(const IcpConfig& config);
@@ -129,6 +141,12 @@ class IcpRegistration {
                                const Pose3& initial_guess, double max_correspondence_distance_m,
                                double kernel_scale_m,
                                const IcpTranslationPrior& prior = IcpTranslationPrior()) const;
+
+  /// Same, with the searches' memory of the previous registration of this source against this
+  /// target (see IcpSearchMemory); it holds this registration's last search afterwards.
+  StatusOr<IcpResult> Register(const PointVector& source, const RegistrationTarget& target,
+                               const Pose3& initial_guess, double max_correspondence_distance_m,
+                               double kernel_scale_m, IcpSearchMemory* memory) const;
 
   /// Same, with a normal per source point (source frame; zero = unknown), e.g. from
   /// EstimateScanNormals: each pair's plane is the source point's normal, the target's
@@ -156,7 +174,8 @@ class IcpRegistration {
   StatusOr<IcpResult> RegisterImpl(const PointVector& source, const PointVector* source_normals,
                                    const RegistrationTarget& target, const Pose3& initial_guess,
                                    double max_correspondence_distance_m,
-                                   double kernel_scale_m, const IcpTranslationPrior& prior) const;
+                                   double kernel_scale_m, const IcpTranslationPrior& prior,
+                                   IcpSearchMemory* memory = nullptr) const;
   IcpConfig config_;
   /// The search threads (null with search_threads 1); copies share it, and their
   /// registrations then take turns on it.
