@@ -54,9 +54,11 @@ class RegistrationTarget {
   /// null) lets an implementation that allows it search on the pool's threads (VoxelHashMap
   /// without normals); this default runs FindMatch in order on the calling thread.
   /// `warm_start`: on entry, *found / *matches hold this target's answer for the same queries
-  /// at nearby positions (the previous iteration of an ICP; the target has not changed since).
-  /// An implementation may bound the search by the distance to the previous match (VoxelHashMap
-  /// does); the results are the same as without. This default ignores it.
+  /// at nearby positions (the previous iteration of an ICP, or the last search with another
+  /// max_distance_m, IcpSearchMemory; the target has not changed since). An implementation
+  /// may bound the search by the distance to the previous match (VoxelHashMap and KdTreeTarget
+  /// do) and keep its own memo in the entries of queries without a match (KdTreeTarget); the
+  /// results are the same as without. This default ignores it.
   virtual void FindMatches(const PointVector& queries, double max_distance_m, bool warm_start,
                            WorkerPool* pool, std::vector<std::uint8_t>* found,
                            std::vector<TargetMatch>* matches) const {
