@@ -10,8 +10,10 @@
 // is computed once (the triple does not depend on the order: the end whose normal is closer to
 // the line between them is the source; only on an exact tie are both computed, as PCL does)
 // with one atan2 and, for nearly tied pairs only, the two acos; the weighted sum runs over
-// contiguous rows. Measured on the `campus` seed-1 s00 map with global_registration_benchmark
-// (same run, see global_registration.cpp): see the note there.
+// contiguous rows. `global_registration_benchmark --compare-fpfh` (also in scripts/bench.sh),
+// `campus` seed-1 s00 map, 20 submaps at the registration's settings, same run: PCL 254.9 ms
+// per submap median, ours 67.7 ms (3.77x); 99.93 % of the 154,793 histograms within L1 0.01
+// of 300. In the registration (both submaps prepared): see the note in global_registration.cpp.
 //
 // Points without a normal take no part: they have no feature and are nobody's neighbour
 // (PCL counts them as neighbours and, through an undefined float-to-int conversion of their
