@@ -127,7 +127,8 @@ StatusOr<std::vector<float>> ComputeFpfh(const PointVector& points,
 
   // SPFH: each pair once (twice on a tie), its bins counted for both ends. PCL's increment is
   // 100 over the number of neighbours, whether or not their pair features exist.
-  std::vector<std::uint32_t> counts(n * kFpfhBins, 0);
+  // Counts per bin first (exact in float up to 2^24), scaled into the SPFH below.
+  std::vector<float> spfh(n * kFpfhBins, 0.0f);
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t k = first[i]; k < first[i + 1]; ++k) {
       const std::uint32_t j = neighbour[k];
@@ -136,7 +137,7 @@ StatusOr<std::vector<float>> ComputeFpfh(const PointVector& points,
       bool tie = false;
       const bool paired = PairBins(p[i], nrm[i], p[j], nrm[j], bins, &tie);
       if (paired) {
-        for (const int b : bins) ++counts[i * kFpfhBins + b];
+        for (const int b : bins) spfh[i * kFpfhBins + b] += 1.0f;
       }
       if (tie) {  // j's own view of the pair
         bool again = false;
@@ -144,17 +145,14 @@ StatusOr<std::vector<float>> ComputeFpfh(const PointVector& points,
       } else if (!paired) {
         continue;
       }
-      for (const int b : bins) ++counts[static_cast<std::size_t>(j) * kFpfhBins + b];
+      for (const int b : bins) spfh[static_cast<std::size_t>(j) * kFpfhBins + b] += 1.0f;
     }
   }
-  std::vector<float> spfh(n * kFpfhBins, 0.0f);
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t neighbours = first[i + 1] - first[i];
     if (neighbours == 0) continue;
     const float increment = 100.0f / static_cast<float>(neighbours);
-    for (int b = 0; b < kFpfhBins; ++b) {
-      spfh[i * kFpfhBins + b] = static_cast<float>(counts[i * kFpfhBins + b]) * increment;
-    }
+    for (int b = 0; b < kFpfhBins; ++b) spfh[i * kFpfhBins + b] *= increment;
   }
 
   // FPFH: the neighbours' SPFHs weighted by 1 / squared distance (the point's own is not part

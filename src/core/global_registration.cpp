@@ -142,13 +142,14 @@ PointVector CropAndDownsample(const PointVector& points, double voxel_m, double 
   return VoxelDownsample(points, voxel_m);
 }
 
-CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationConfig& config,
-                            bool with_features) {
-  CoarseCloud cloud;
-  cloud.points = CropAndDownsample(points, config.coarse_voxel_m, config.coarse_max_range_m);
+}  // namespace
+
+CoarsePoints MakeCoarsePoints(const PointVector& points, const GlobalRegistrationConfig& config) {
+  CoarsePoints coarse;
+  coarse.points = CropAndDownsample(points, config.coarse_voxel_m, config.coarse_max_range_m);
   pcl::PointCloud<pcl::PointXYZ>::Ptr xyz(new pcl::PointCloud<pcl::PointXYZ>);
-  xyz->reserve(cloud.points.size());
-  for (const Eigen::Vector3d& p : cloud.points) {
+  xyz->reserve(coarse.points.size());
+  for (const Eigen::Vector3d& p : coarse.points) {
     xyz->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
                                  static_cast<float>(p.z())));
   }
@@ -161,13 +162,24 @@ CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationC
   // Submap frames are sensor frames: orient normals towards the origin's upper side.
   normal_estimation.setViewPoint(0.0f, 0.0f, 2.0f);
   normal_estimation.compute(*normals);
-  cloud.normals.resize(cloud.points.size(), Eigen::Vector3d::Zero());
+  coarse.normals.resize(coarse.points.size(), Eigen::Vector3d::Zero());
   for (std::size_t i = 0; i < normals->size(); ++i) {
     const pcl::Normal& n = (*normals)[i];
     if (std::isfinite(n.normal_x) && std::isfinite(n.normal_y) && std::isfinite(n.normal_z)) {
-      cloud.normals[i] = Eigen::Vector3d(n.normal_x, n.normal_y, n.normal_z);
+      coarse.normals[i] = Eigen::Vector3d(n.normal_x, n.normal_y, n.normal_z);
     }
   }
+  return coarse;
+}
+
+namespace {
+
+CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationConfig& config,
+                            bool with_features) {
+  CoarseCloud cloud;
+  CoarsePoints coarse = MakeCoarsePoints(points, config);
+  cloud.points = std::move(coarse.points);
+  cloud.normals = std::move(coarse.normals);
   if (!with_features) return cloud;
   cloud.with_features = true;
   std::vector<std::uint8_t> defined;

@@ -97,6 +97,13 @@ struct KdTreeTarget::Impl {
     return is_planar;
   }
 
+  // The match of points[index] at `distance_sq` from the query, with its normal.
+  void Match(std::size_t index, double distance_sq, TargetMatch* match) const {
+    match->point = points[index];
+    match->distance_sq = distance_sq;
+    match->has_normal = NormalAt(index, &match->normal);
+  }
+
   PointVector points;
   KdTreeTargetConfig config;
   PointVectorAdaptor adaptor;
@@ -183,9 +190,7 @@ void KdTreeTarget::FindMatches(const PointVector& queries, double max_distance_m
     double dist_sq = 0.0;
     if (NearestWithinSq(queries[i], reach_sq, &index, &dist_sq) && dist_sq <= max_sq) {
       (*found)[i] = 1;
-      match.point = impl_->points[index];
-      match.distance_sq = dist_sq;
-      match.has_normal = impl_->NormalAt(index, &match.normal);
+      impl_->Match(index, dist_sq, &match);
       continue;
     }
     (*found)[i] = 0;
@@ -200,9 +205,7 @@ bool KdTreeTarget::MatchWithin(const Eigen::Vector3d& query, double bound_sq,
   std::size_t index = 0;
   double dist_sq = 0.0;
   if (!NearestWithinSq(query, bound_sq, &index, &dist_sq)) return false;
-  match->point = impl_->points[index];
-  match->distance_sq = dist_sq;
-  match->has_normal = impl_->NormalAt(index, &match->normal);
+  impl_->Match(index, dist_sq, match);
   return true;
 }
 

@@ -22,14 +22,12 @@
 #include <vector>
 
 #include <pcl/features/fpfh.h>
-#include <pcl/features/normal_3d.h>
 #include <pcl/search/kdtree.h>
 
 #include "multisession_mapper/core/fpfh_features.h"
 #include "multisession_mapper/core/global_registration.h"
 #include "multisession_mapper/core/map_store.h"
 #include "multisession_mapper/core/se3.h"
-#include "multisession_mapper/core/voxel_downsample.h"
 #include "multisession_mapper/tools/cli.h"
 
 namespace core = multisession_mapper::core;
@@ -65,8 +63,8 @@ struct StageMedians {
 };
 
 // PCL's FPFHEstimation and ComputeFpfh on the coarse clouds of the first `max_submaps`
-// submaps, as GlobalRegistration builds them (cropped, downsampled, PCL normals), each timed
-// in the same run; the histograms compared on the points where both are defined.
+// submaps (MakeCoarsePoints, as GlobalRegistration builds them), each timed in the same run;
+// the histograms compared on the points where both are defined.
 int CompareFpfh(const std::vector<core::Submap, Eigen::aligned_allocator<core::Submap>>& submaps,
                 const core::GlobalRegistrationConfig& c,
                 long long max_submaps) {
@@ -74,38 +72,22 @@ int CompareFpfh(const std::vector<core::Submap, Eigen::aligned_allocator<core::S
   std::vector<double> pcl_ms, own_ms;
   std::size_t points = 0, compared = 0, same = 0, definition_differs = 0;
   for (std::size_t k = 0; k < submaps.size() && static_cast<long long>(k) < max_submaps; ++k) {
-    core::PointVector cropped;
-    for (const Eigen::Vector3d& p : submaps[k].points) {
-      if (c.coarse_max_range_m <= 0.0 || p.norm() <= c.coarse_max_range_m) cropped.push_back(p);
-    }
-    const core::PointVector coarse = core::VoxelDownsample(cropped, c.coarse_voxel_m);
-    pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-    for (const Eigen::Vector3d& p : coarse) {
-      cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
-                                     static_cast<float>(p.z())));
-    }
-    pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
-    pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
-    pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimation;
-    estimation.setInputCloud(cloud);
-    estimation.setSearchMethod(tree);
-    estimation.setRadiusSearch(c.normal_radius_m);
-    estimation.setViewPoint(0.0f, 0.0f, 2.0f);
-    estimation.compute(*normals);
     // Both on the points with a normal: ours leaves the others out, PCL would count them
     // (fpfh_features.h), so that the histograms are comparable.
+    const core::CoarsePoints coarse = core::MakeCoarsePoints(submaps[k].points, c);
     core::PointVector kept;
     std::vector<Eigen::Vector3d> ours_normals;
     pcl::PointCloud<pcl::PointXYZ>::Ptr kept_cloud(new pcl::PointCloud<pcl::PointXYZ>);
     pcl::PointCloud<pcl::Normal>::Ptr kept_normals(new pcl::PointCloud<pcl::Normal>);
-    for (std::size_t i = 0; i < coarse.size(); ++i) {
-      const pcl::Normal& n = (*normals)[i];
-      const Eigen::Vector3d v(n.normal_x, n.normal_y, n.normal_z);
-      if (!v.allFinite()) continue;
-      kept.push_back(coarse[i]);
-      ours_normals.push_back(v);
-      kept_cloud->push_back((*cloud)[i]);
-      kept_normals->push_back(n);
+    for (std::size_t i = 0; i < coarse.points.size(); ++i) {
+      const Eigen::Vector3d& p = coarse.points[i];
+      const Eigen::Vector3f n = coarse.normals[i].cast<float>();  // PCL's float, exactly
+      if (n.isZero(0.0)) continue;
+      kept.push_back(p);
+      ours_normals.push_back(coarse.normals[i]);
+      kept_cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                                          static_cast<float>(p.z())));
+      kept_normals->push_back(pcl::Normal(n.x(), n.y(), n.z()));
     }
     const auto t0 = Clock::now();
     pcl::PointCloud<pcl::FPFHSignature33> reference;

@@ -125,6 +125,16 @@ struct GlobalRegistrationResult {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };
 
+/// The coarse points of a submap as the feature stage sees them: cropped to
+/// coarse_max_range_m, downsampled to coarse_voxel_m, with PCL normals within normal_radius_m
+/// oriented towards a view point 2 m above the origin (unit; zero where PCL has none). The FPFH
+/// features (ComputeFpfh, feature_radius_m) are computed over these.
+struct CoarsePoints {
+  PointVector points;
+  std::vector<Eigen::Vector3d> normals;
+};
+CoarsePoints MakeCoarsePoints(const PointVector& points, const GlobalRegistrationConfig& config);
+
 /// A submap prepared for global registration (coarse cloud with normals and FPFH features, the
 /// fine-stage source and, for a target, the fine-stage kd-tree). Prepare each submap once and
 /// register many pairs: a history submap is the target of several current submaps, a current
