@@ -180,6 +180,74 @@ TEST(IcpRegistrationTest, SearchMemoryAcrossAScheduleGivesTheSamePoses) {
   ExpectPoseNear(warm, pair.T_a_b, 0.02, 0.1 * kDeg);
 }
 
+// The odometry registers one scan's points several times against the unchanged local map,
+// the last time with more source normals (the map-ground refinement): the memory's entries
+// follow their source points into another set of searched points (below), and each
+// registration lands where it lands without the memory.
+TEST(IcpRegistrationTest, SearchMemoryFollowsTheSourcePointsAcrossNormalSets) {
+  const SyntheticPair pair = MakePair();
+  VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();
+  map.AddPoints(VoxelDownsample(pair.target, 0.1));
+  const PointVector source = VoxelDownsample(pair.source, 0.3);
+  PointVector normals(source.size(), Eigen::Vector3d::Zero());
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    Eigen::Vector3d n;
+    if (map.PlaneNormalAt(pair.T_a_b * source[i], &n)) {
+      normals[i] = pair.T_a_b.linear().transpose() * n;
+    }
+  }
+  const KdTreeTarget target = KdTreeTarget::Create(map.Points()).value();
+  // Every other point with a normal, the other half, and all of them: sets of nearly equal
+  // size whose entries differ, so entries kept by position would bound the wrong points.
+  PointVector even = normals, odd = normals;
+  for (std::size_t i = 0; i < source.size(); ++i) (i % 2 == 0 ? odd : even)[i].setZero();
+  const IcpRegistration icp = IcpRegistration::Create(IcpConfig()).value();
+  const Pose3 guess = pair.T_a_b * se3::FromXyzRpy(0.3, -0.2, 0.05, 0.0, 0.5 * kDeg, 2.0 * kDeg);
+  for (const PointVector* next : {&odd, &normals}) {
+    IcpSearchMemory memory;
+    const StatusOr<IcpResult> first =
+        icp.Register(source, even, target, guess, 1.0, 0.3, IcpTranslationPrior(), &memory);
+    ASSERT_TRUE(first.ok());
+    ASSERT_EQ(memory.searched.size(), memory.found.size());
+    const Pose3 from = first.value().pose * se3::FromXyzRpy(0.05, 0.0, 0.0, 0.0, 0.0, 0.2 * kDeg);
+    const StatusOr<IcpResult> cold = icp.Register(source, *next, target, from, 1.0, 0.3);
+    const StatusOr<IcpResult> warm =
+        icp.Register(source, *next, target, from, 1.0, 0.3, IcpTranslationPrior(), &memory);
+    ASSERT_TRUE(cold.ok() && warm.ok());
+    EXPECT_EQ(cold.value().pose.matrix(), warm.value().pose.matrix());
+    EXPECT_EQ(cold.value().searches, warm.value().searches);
+    EXPECT_EQ(cold.value().num_inliers, warm.value().num_inliers);
+    std::size_t with_normal = 0;
+    for (const Eigen::Vector3d& n : *next) with_normal += n.isZero(0.0) ? 0 : 1;
+    EXPECT_EQ(memory.searched.size(), with_normal);
+    ExpectPoseNear(warm.value().pose, pair.T_a_b, 0.02, 0.1 * kDeg);
+  }
+}
+
+TEST(IcpRegistrationTest, SearchMemoryEntriesFollowTheirSourcePoints) {
+  IcpSearchMemory memory;
+  memory.searched = {1, 3, 5};
+  memory.found = {1, 0, 1};
+  memory.matches.resize(3);
+  for (int k = 0; k < 3; ++k) memory.matches[k].point = Eigen::Vector3d(k + 1.0, 0.0, 0.0);
+  memory.matches[1].distance_sq = 4.0;  // a miss memo
+  memory.FollowSourcePoints({0, 1, 3, 6});
+  EXPECT_EQ(memory.searched, (std::vector<std::size_t>{0, 1, 3, 6}));
+  ASSERT_EQ(memory.found, (std::vector<std::uint8_t>{0, 1, 0, 0}));
+  ASSERT_EQ(memory.matches.size(), 4u);
+  EXPECT_EQ(memory.matches[0].point, Eigen::Vector3d::Zero());  // new: no hint
+  EXPECT_EQ(memory.matches[0].distance_sq, 0.0);
+  EXPECT_EQ(memory.matches[1].point, Eigen::Vector3d(1.0, 0.0, 0.0));
+  EXPECT_EQ(memory.matches[2].point, Eigen::Vector3d(2.0, 0.0, 0.0));  // point 3's miss memo
+  EXPECT_EQ(memory.matches[2].distance_sq, 4.0);
+  EXPECT_EQ(memory.matches[3].distance_sq, 0.0);
+  // Entries that do not fit their indices (never filled by a registration): a cold start.
+  memory.found.pop_back();
+  memory.FollowSourcePoints({2, 3});
+  EXPECT_TRUE(memory.found.empty() && memory.matches.empty());
+  EXPECT_EQ(memory.searched, (std::vector<std::size_t>{2, 3}));
+}
+
 TEST(IcpRegistrationTest, SearchThreadsGiveTheSamePose) {
   const SyntheticPair pair = MakePair();
   VoxelHashMap map = VoxelHashMap::Create(VoxelHashMapConfig()).value();

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -101,6 +102,30 @@ Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
 
 }  // namespace
 
+void IcpSearchMemory::FollowSourcePoints(const std::vector<std::size_t>& next_searched) {
+  if (searched == next_searched) return;
+  const std::size_t n = searched.size();
+  if (found.size() != n || matches.size() != n) {
+    found.clear();  // not of this source's points (or never filled): a cold start
+    matches.clear();
+    searched = next_searched;
+    return;
+  }
+  std::vector<std::uint8_t> next_found(next_searched.size(), 0);
+  std::vector<TargetMatch> next_matches(next_searched.size());
+  std::size_t old = 0;
+  for (std::size_t k = 0; k < next_searched.size(); ++k) {
+    while (old < n && searched[old] < next_searched[k]) ++old;
+    if (old < n && searched[old] == next_searched[k]) {
+      next_found[k] = found[old];
+      next_matches[k] = matches[old];
+    }
+  }
+  found = std::move(next_found);
+  matches = std::move(next_matches);
+  searched = next_searched;
+}
+
 StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const RegistrationTarget& target,
                                               const Pose3& initial_guess,
@@ -128,12 +153,24 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               double max_correspondence_distance_m,
                                               double kernel_scale_m,
                                               const IcpTranslationPrior& prior) const {
+  return Register(source, source_normals, target, initial_guess, max_correspondence_distance_m,
+                  kernel_scale_m, prior, nullptr);
+}
+
+StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
+                                              const PointVector& source_normals,
+                                              const RegistrationTarget& target,
+                                              const Pose3& initial_guess,
+                                              double max_correspondence_distance_m,
+                                              double kernel_scale_m,
+                                              const IcpTranslationPrior& prior,
+                                              IcpSearchMemory* memory) const {
   if (source_normals.size() != source.size()) {
     return Status::Error("icp: " + std::to_string(source_normals.size()) + " normals for " +
                          std::to_string(source.size()) + " source points");
   }
   return RegisterImpl(source, &source_normals, target, initial_guess,
-                      max_correspondence_distance_m, kernel_scale_m, prior);
+                      max_correspondence_distance_m, kernel_scale_m, prior, memory);
 }
 
 StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
@@ -187,6 +224,7 @@ StatusOr<IcpResult> IcpRegistration::RegisterImpl(const PointVector& source,
   for (std::size_t i = 0; i < source.size(); ++i) {
     if (!normals_only || !(*source_normals)[i].isZero(0.0)) searched.push_back(i);
   }
+  if (memory != nullptr) memory->FollowSourcePoints(searched);
   Pose3 searched_pose = pose;
   bool must_search = true;
   const bool every_iteration =

@@ -170,6 +170,10 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
 
   PointVector source;
   PointVector source_normals;  // empty: ICP with the local map's normals only
+  // The last search of the last registration of `source` against the local map (which does
+  // not change within a scan): the next registration of the same points starts from it, with
+  // the same results (IcpSearchMemory). prepare() makes new points and forgets it.
+  IcpSearchMemory memory;
   // De-skews with `v` and downsamples: map points, then the coarser registration points
   // (with their normals from the scan's rings).
   const auto prepare = [&](const se3::Vector6d& v) {
@@ -181,6 +185,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     const LidarScan source_scan = VoxelDownsample(map_scan, config_.registration_voxel_size_m);
     source = ScanToPointVector(source_scan);
     source_normals.clear();
+    memory = IcpSearchMemory();
     if (config_.use_scan_normals && result.deskewed_scan.has_ring) {
       source_normals =
           EstimateScanNormals(result.deskewed_scan, source_scan.points, config_.scan_normals);
@@ -204,7 +209,7 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
     } else {
       local_map_.SetNormalsEnabled(false);  // unused by this ICP; they cost most of a match
       icp = runner.Register(source, normals != nullptr ? *normals : source_normals, local_map_,
-                            guess, max_distance_m, kernel_m, prior);
+                            guess, max_distance_m, kernel_m, prior, &memory);
       local_map_.SetNormalsEnabled(true);
     }
     ++result.registrations;
@@ -332,12 +337,13 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       PointVector map_points;
       se3::Vector6d velocity;
       PointVector source, source_normals;
+      IcpSearchMemory memory;
       bool changed = false;
     };
     // The registration's scan and points move into `best`; prepare() refills result's.
     Best best{result.icp.mean_weight * config_.turn_hypothesis_margin, estimate, result.icp,
               std::move(result.deskewed_scan), std::move(result.map_points), estimated_velocity,
-              std::move(source), std::move(source_normals)};
+              std::move(source), std::move(source_normals), std::move(memory)};
     for (double rate : rates) {
       se3::Vector6d v = velocity;
       v(5) = rate;
@@ -348,13 +354,14 @@ StatusOr<OdometryResult> Odometry::ProcessScan(const LidarScan& scan) {
       best = Best{h.value().mean_weight, h.value().pose, h.value(),
                   std::move(result.deskewed_scan), std::move(result.map_points),
                   WindowVelocity(h.value().pose, scan.stamp_s), std::move(source),
-                  std::move(source_normals), true};
+                  std::move(source_normals), std::move(memory), true};
     }
     // Leave the chosen hypothesis' scan and points behind (prepare overwrote them).
     result.deskewed_scan = std::move(best.deskewed);
     result.map_points = std::move(best.map_points);
     source = std::move(best.source);
     source_normals = std::move(best.source_normals);
+    memory = std::move(best.memory);
     if (best.changed) {
       result.turn_hypothesis_won = true;
       estimate = best.pose;

@@ -119,10 +119,20 @@ struct IcpResult {
 /// of the same source against the same, unchanged target (the next correspondence distance of
 /// a schedule, SubmapRegistration): that registration's first search is then warm-started
 /// (RegistrationTarget::FindMatches) instead of cold, with the same results. Empty: a cold
-/// start.
+/// start. The next registration may search other points of the same source (other source
+/// normals: the odometry's map-ground refinement); the entries follow their source points.
 struct IcpSearchMemory {
   std::vector<std::uint8_t> found;
   std::vector<TargetMatch> matches;
+  std::vector<std::size_t> searched;  ///< the source index of each entry, ascending
+
+  /// Re-indexes the entries to the points `next_searched` (source indices, ascending): an
+  /// entry follows its source point, a point not searched last time gets no hint (found 0
+  /// and an empty match: a cold search, no miss memo either). Any hint is safe (a match is a
+  /// target point, an upper bound on the nearest distance; a miss memo holds where it
+  /// missed), so following the points is for speed: the hint is the point's own, and close.
+  /// Entries that do not fit `searched` (never filled) are dropped: a cold start.
+  void FollowSourcePoints(const std::vector<std::size_t>& next_searched);
 };
 
 class IcpRegistration {
@@ -160,6 +170,13 @@ class IcpRegistration {
                                const RegistrationTarget& target, const Pose3& initial_guess,
                                double max_correspondence_distance_m, double kernel_scale_m,
                                const IcpTranslationPrior& prior = IcpTranslationPrior()) const;
+
+  /// Same, with the searches' memory of the previous registration of this source against this
+  /// target (see IcpSearchMemory; the odometry's later registrations of one scan).
+  StatusOr<IcpResult> Register(const PointVector& source, const PointVector& source_normals,
+                               const RegistrationTarget& target, const Pose3& initial_guess,
+                               double max_correspondence_distance_m, double kernel_scale_m,
+                               const IcpTranslationPrior& prior, IcpSearchMemory* memory) const;
 
   /// A copy that converges at steps under these [m], [rad] (>= 0) or stops after
   /// `max_iterations` (>= 1), and shares this one's search threads (the two then take turns
