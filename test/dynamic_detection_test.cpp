@@ -1,6 +1,7 @@
 #include "multisession_mapper/core/dynamic_detection.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -466,24 +467,72 @@ TEST(DynamicDetectionTest, ShorterCarInTheSlotOfAChangedCarIsItsPartner) {
   EXPECT_FALSE(shorter_strict->changed);
 }
 
+// Another car in the slot with its long sides where the first car's were: 0.3 m further
+// along the street at one end and 0.25 m shorter at the other. The sides, most of either car,
+// agree; only the ends contradict, too few for changed_min_fraction. With the end rule both
+// cars are changed, by their ends.
+TEST(DynamicDetectionTest, AnotherCarWithItsEndsElsewhereIsChangedByItsEnds) {
+  Scene other_car{true};
+  other_car.car_box = Box{{7.2, -2.55, 0.25}, {9.0, 2.0, 1.6}};
+  const SessionData history = MakeSession(Scene{true}, 0.0, 81, HistoryFrame());
+  const SessionData current = MakeSession(other_car, 0.3, 82, Pose3::Identity());
+  const int history_car = CountLabel(history.labels, kCar);
+  const int current_car = CountLabel(current.labels, kCar);
+  ASSERT_GT(history_car, 100);
+  ASSERT_GT(current_car, 100);
+  DynamicDetectionConfig without;
+  ASSERT_EQ(without.changed_end_min_compared, 0);  // off by default
+  DynamicDetectionConfig with = without;
+  with.changed_end_min_compared = 15;
+  with.changed_end_min_fraction = 0.9;
+  std::array<int, 2> found_without{}, found_with{};
+  for (const DynamicDetectionConfig* config : {&without, &with}) {
+    const DynamicDetectionResult result = RunDetector(history, current, *config);
+    std::array<int, 2>& found = config == &with ? found_with : found_without;
+    found[0] = CountLabel(history.labels, result.history_dynamic, kCar, true);
+    found[1] = CountLabel(current.labels, result.current_dynamic, kCar, true);
+    for (const auto& object : result.examined_objects) {
+      std::printf("  %s, examined side %d: %zu points, %d/%d off, ends %d/%d and %d/%d%s\n",
+                  config == &with ? "with" : "without", object.side, object.points.size(),
+                  object.off_surface, object.compared, object.end_off[0],
+                  object.end_compared[0], object.end_off[1], object.end_compared[1],
+                  object.changed ? " changed" : "");
+    }
+    EXPECT_LE(CountLabel(history.labels, result.history_dynamic, kCar, false), 3);
+    EXPECT_LE(CountLabel(current.labels, result.current_dynamic, kCar, false), 3);
+  }
+  std::printf("history car %d/%d (%d without the rule), current car %d/%d (%d without)\n",
+              found_with[0], history_car, found_without[0], found_with[1], current_car,
+              found_without[1]);
+  EXPECT_LT(found_without[0], 0.5 * history_car);  // the case the rule is for
+  EXPECT_LT(found_without[1], 0.5 * current_car);
+  EXPECT_GE(found_with[0], 0.95 * history_car);
+  EXPECT_GE(found_with[1], 0.95 * current_car);
+}
+
 // The same car in both sessions (sampled from other places, different noise) is static, and
 // it was examined (not just skipped as too small or too far).
 TEST(DynamicDetectionTest, TheSameCarInBothSessionsIsStatic) {
   const SessionData history = MakeSession(Scene{true}, 0.0, 61, HistoryFrame());
   const SessionData current = MakeSession(Scene{true}, 0.3, 62, Pose3::Identity());
-  const DynamicDetectionResult result = RunDetector(history, current, DynamicDetectionConfig());
-  int car_objects = 0;
-  for (const auto& object : result.examined_objects) {
-    const std::vector<int>& labels = object.side == 0 ? history.labels : current.labels;
-    const int car = CountLabel(labels, object.points, kCar, true);
-    std::printf("  examined side %d: %zu points (%d car), %d/%d off%s\n", object.side,
-                object.points.size(), car, object.off_surface, object.compared,
-                object.changed ? " changed" : "");
-    if (car > 0.9 * object.points.size() && object.compared > 50) ++car_objects;
+  DynamicDetectionConfig ends;  // also with the end rule of changed objects
+  ends.changed_end_min_compared = 15;
+  ends.changed_end_min_fraction = 0.9;
+  for (const DynamicDetectionConfig& config : {DynamicDetectionConfig(), ends}) {
+    const DynamicDetectionResult result = RunDetector(history, current, config);
+    int car_objects = 0;
+    for (const auto& object : result.examined_objects) {
+      const std::vector<int>& labels = object.side == 0 ? history.labels : current.labels;
+      const int car = CountLabel(labels, object.points, kCar, true);
+      std::printf("  examined side %d: %zu points (%d car), %d/%d off%s\n", object.side,
+                  object.points.size(), car, object.off_surface, object.compared,
+                  object.changed ? " changed" : "");
+      if (car > 0.9 * object.points.size() && object.compared > 50) ++car_objects;
+    }
+    EXPECT_EQ(car_objects, 2);
+    EXPECT_LE(CountLabel(history.labels, result.history_dynamic, kCar, true), 3);
+    EXPECT_LE(CountLabel(current.labels, result.current_dynamic, kCar, true), 3);
   }
-  EXPECT_EQ(car_objects, 2);
-  EXPECT_LE(CountLabel(history.labels, result.history_dynamic, kCar, true), 3);
-  EXPECT_LE(CountLabel(current.labels, result.current_dynamic, kCar, true), 3);
 }
 
 TEST(DynamicDetectionTest, PorousCanopyIsNotDynamicWithoutTheHeightGuard) {

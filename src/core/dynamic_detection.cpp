@@ -12,6 +12,8 @@
 #include <unordered_map>
 #include <utility>
 
+#include <Eigen/Eigenvalues>
+
 #include "multisession_mapper/core/local_plane.h"
 #include "multisession_mapper/core/point_index.h"
 #include "multisession_mapper/core/ray_voxel_grid.h"
@@ -419,6 +421,12 @@ class PairDetection {
       CompareSurfaces(s, cluster, &object);
       object.changed = object.compared >= config_.changed_min_compared &&
                        object.off_surface >= config_.changed_min_fraction * object.compared;
+      for (int end = 0; end < 2 && config_.changed_end_min_compared > 0; ++end) {
+        object.changed = object.changed ||
+                         (object.end_compared[end] >= config_.changed_end_min_compared &&
+                          object.end_off[end] >=
+                              config_.changed_end_min_fraction * object.end_compared[end]);
+      }
       examined->push_back(std::move(object));
     }
   }
@@ -625,8 +633,30 @@ class PairDetection {
     const Side& theirs = sides_[other];
     std::vector<std::uint32_t> neighbours;
     Eigen::Vector3f normal;
+    // The object's longest horizontal axis and centroid, for its ends.
+    Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+    for (std::uint32_t i : cluster) centroid += sides_[s].points[i].head<2>();
+    centroid /= static_cast<double>(cluster.size());
+    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+    for (std::uint32_t i : cluster) {
+      const Eigen::Vector2d d = sides_[s].points[i].head<2>() - centroid;
+      scatter += d * d.transpose();
+    }
+    const Eigen::Vector2d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(scatter)
+                                     .eigenvectors()
+                                     .col(1);  // of the largest eigenvalue
+    const bool ends = config_.changed_end_min_compared > 0;
     for (std::uint32_t i : cluster) {
       const Eigen::Vector3d& p = sides_[s].points[i];
+      // Which end the point is on, if its own surface faces along the axis (-1: none).
+      int end = -1;
+      Eigen::Vector3f own;
+      if (ends && Normal(s, i, &own)) {
+        const Eigen::Vector2d horizontal = own.head<2>().cast<double>();
+        if (std::abs(horizontal.dot(axis)) >= config_.changed_end_min_cos * own.norm()) {
+          end = (p.head<2>() - centroid).dot(axis) >= 0.0 ? 0 : 1;
+        }
+      }
       indices_[other]->Nearest(p, 8, config_.changed_neighbour_radius_m, &neighbours);
       bool any = false, planar = false, on_surface = false;
       for (std::uint32_t j : neighbours) {
@@ -650,11 +680,19 @@ class PairDetection {
           ++object->compared;
           ++object->off_surface;
           ++object->seen_through;
+          if (end >= 0) {
+            ++object->end_compared[end];
+            ++object->end_off[end];
+          }
         }
         continue;
       }
       ++object->compared;
       object->off_surface += !on_surface;
+      if (end >= 0) {
+        ++object->end_compared[end];
+        object->end_off[end] += !on_surface;
+      }
     }
   }
 
@@ -987,6 +1025,13 @@ Status DynamicDetectionConfig::Validate() const {
     return Status::Error(
         "dynamic_detection.changed_min_planar_fraction and changed_partner_min_fraction must "
         "be in [0, 1] and changed_min_fraction in (0, 1]");
+  }
+  if (changed_end_min_compared < 0 || !(changed_end_min_fraction > 0.0) ||
+      !(changed_end_min_fraction <= 1.0) || !(changed_end_min_cos >= 0.0) ||
+      !(changed_end_min_cos <= 1.0)) {
+    return Status::Error(
+        "dynamic_detection.changed_end_min_compared must be >= 0 (0: off), "
+        "changed_end_min_fraction in (0, 1] and changed_end_min_cos in [0, 1]");
   }
   return Status::Ok();
 }

@@ -408,6 +408,10 @@ int main(int argc, char** argv) {
     if (voxel > 0.0) config.voxel_size_m = voxel;
     for (const auto& [key, v] : overrides) {
       if (key == "seed_distance_m") config.seed_distance_m = v;
+      else if (key == "changed_end_min_compared")
+        config.changed_end_min_compared = static_cast<int>(v);
+      else if (key == "changed_end_min_fraction") config.changed_end_min_fraction = v;
+      else if (key == "changed_end_min_cos") config.changed_end_min_cos = v;
       else if (key == "support_radius_m") config.support_radius_m = v;
       else if (key == "free_column_depth_m") config.free_column_depth_m = v;
       else if (key == "column_clearance_m") config.column_clearance_m = v;
@@ -644,11 +648,13 @@ int main(int argc, char** argv) {
       counts.second += e.object.changed;
       if (per_object) {
         std::printf("    examined %s %s/%zu object %u (%s): %zu points, %d/%d off the other's "
-                    "surface (%.0f %%; %d seen through)%s\n",
+                    "surface (%.0f %%; %d seen through), ends %d/%d and %d/%d off%s\n",
                     e.object.side == 0 ? "history" : "current", d.name.c_str(), e.submap, id,
                     truth.c_str(),
                     e.object.points.size(), e.object.off_surface, e.object.compared,
                     pct(e.object.off_surface, e.object.compared), e.object.seen_through,
+                    e.object.end_off[0], e.object.end_compared[0], e.object.end_off[1],
+                    e.object.end_compared[1],
                     e.object.changed ? (e.object.by_partner ? ": CHANGED (partner)" : ": CHANGED")
                                      : "");
       }
