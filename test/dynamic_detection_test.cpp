@@ -469,8 +469,8 @@ TEST(DynamicDetectionTest, ShorterCarInTheSlotOfAChangedCarIsItsPartner) {
 
 // Another car in the slot with its long sides where the first car's were: 0.3 m further
 // along the street at one end and 0.25 m shorter at the other. The sides, most of either car,
-// agree; only the ends contradict, too few for changed_min_fraction. With the end rule both
-// cars are changed, by their ends.
+// agree; only the ends contradict, too few for changed_min_fraction. With the end rule (the
+// default) both cars are changed, by their ends.
 TEST(DynamicDetectionTest, AnotherCarWithItsEndsElsewhereIsChangedByItsEnds) {
   Scene other_car{true};
   other_car.car_box = Box{{7.2, -2.55, 0.25}, {9.0, 2.0, 1.6}};
@@ -480,11 +480,10 @@ TEST(DynamicDetectionTest, AnotherCarWithItsEndsElsewhereIsChangedByItsEnds) {
   const int current_car = CountLabel(current.labels, kCar);
   ASSERT_GT(history_car, 100);
   ASSERT_GT(current_car, 100);
-  DynamicDetectionConfig without;
-  ASSERT_EQ(without.changed_end_min_compared, 0);  // off by default
-  DynamicDetectionConfig with = without;
-  with.changed_end_min_compared = 15;
-  with.changed_end_min_fraction = 0.9;
+  DynamicDetectionConfig with;  // the defaults: the rule on
+  ASSERT_GT(with.changed_end_min_compared, 0);
+  DynamicDetectionConfig without = with;
+  without.changed_end_min_compared = 0;
   std::array<int, 2> found_without{}, found_with{};
   for (const DynamicDetectionConfig* config : {&without, &with}) {
     const DynamicDetectionResult result = RunDetector(history, current, *config);
@@ -515,10 +514,9 @@ TEST(DynamicDetectionTest, AnotherCarWithItsEndsElsewhereIsChangedByItsEnds) {
 TEST(DynamicDetectionTest, TheSameCarInBothSessionsIsStatic) {
   const SessionData history = MakeSession(Scene{true}, 0.0, 61, HistoryFrame());
   const SessionData current = MakeSession(Scene{true}, 0.3, 62, Pose3::Identity());
-  DynamicDetectionConfig ends;  // also with the end rule of changed objects
-  ends.changed_end_min_compared = 15;
-  ends.changed_end_min_fraction = 0.9;
-  for (const DynamicDetectionConfig& config : {DynamicDetectionConfig(), ends}) {
+  DynamicDetectionConfig no_ends;  // also without the end rule of changed objects
+  no_ends.changed_end_min_compared = 0;
+  for (const DynamicDetectionConfig& config : {DynamicDetectionConfig(), no_ends}) {
     const DynamicDetectionResult result = RunDetector(history, current, config);
     int car_objects = 0;
     for (const auto& object : result.examined_objects) {

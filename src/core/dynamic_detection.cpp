@@ -680,20 +680,40 @@ class PairDetection {
           ++object->compared;
           ++object->off_surface;
           ++object->seen_through;
-          if (end >= 0) {
-            ++object->end_compared[end];
-            ++object->end_off[end];
-          }
         }
         continue;
       }
       ++object->compared;
       object->off_surface += !on_surface;
-      if (end >= 0) {
-        ++object->end_compared[end];
-        object->end_off[end] += !on_surface;
+      if (end >= 0) CompareEnd(other, p, own, neighbours, &object->end_compared[end],
+                               &object->end_off[end]);
+    }
+  }
+
+  // An end point is judged only by the other session's surfaces that face the same way (its
+  // neighbours with a normal within acos(changed_end_min_cos) of the point's own): the other
+  // car's end. Beside a corner the other session's side of the same car is near too, off the
+  // end's plane; and an end the other session saw through says nothing about which car it
+  // was (cars that stayed had such ends at times).
+  void CompareEnd(int other, const Eigen::Vector3d& p, const Eigen::Vector3f& own,
+                  const std::vector<std::uint32_t>& neighbours, int* compared, int* off) {
+    const Side& theirs = sides_[other];
+    Eigen::Vector3f normal;
+    bool facing = false;
+    for (std::uint32_t j : neighbours) {
+      if (theirs.height_m[j] < config_.ground_tolerance_m || !Normal(other, j, &normal) ||
+          std::abs(normal.dot(own)) < config_.changed_end_min_cos) {
+        continue;
+      }
+      facing = true;
+      if (std::abs(normal.cast<double>().dot(p - theirs.points[j])) <=
+          config_.changed_surface_distance_m) {
+        ++*compared;
+        return;
       }
     }
+    *compared += facing ? 1 : 0;
+    *off += facing ? 1 : 0;
   }
 
   // Calls visit(key) for the voxels below the voxel of point i of side s, one after the other
