@@ -74,8 +74,9 @@ class MapMergingNodelet : public nodelet::Nodelet {
     // ROS-only parameters: from the launch file when given there.
     pnh.param("idle_finish_s", initial.idle_finish_s, initial.idle_finish_s);
     pnh.param("merged_map_voxel_m", initial.merged_map_voxel_m, initial.merged_map_voxel_m);
-    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](MapMergingConfig& c, uint32_t) { Reconfigure(&c); });
+    server_ = StartReconfigureServer(
+        reconfigure_mutex_, pnh, initial,
+        [this](MapMergingConfig& c, uint32_t) { Reconfigure(&c); });
 
     odom_sub_ = nh.subscribe("odom", 100, &MapMergingNodelet::OnOdom, this);
     session_sub_ = nh.subscribe("finished_session", 2, &MapMergingNodelet::OnSession, this);

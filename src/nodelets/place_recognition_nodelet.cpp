@@ -60,8 +60,9 @@ class PlaceRecognitionNodelet : public nodelet::Nodelet {
       LoadHistory();
     }
     PlaceRecognitionConfig initial = ros_params::ToPlaceRecognitionConfig(config_, matching_);
-    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](PlaceRecognitionConfig& c, uint32_t) { Reconfigure(&c); });
+    server_ = StartReconfigureServer(
+        reconfigure_mutex_, pnh, initial,
+        [this](PlaceRecognitionConfig& c, uint32_t) { Reconfigure(&c); });
 
     match_pub_ = nh.advertise<PlaceMatch>("place_matches", 100);
     candidates_pub_ = nh.advertise<LoopCandidateArray>("loop_candidates", 1, true);

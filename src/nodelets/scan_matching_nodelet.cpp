@@ -58,8 +58,9 @@ class ScanMatchingNodelet : public nodelet::Nodelet {
       if (!Restart(core::Pose3::Identity())) return;
     }
     ScanMatchingConfig initial = ros_params::ToScanMatchingConfig(config_);
-    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](ScanMatchingConfig& c, uint32_t) { Reconfigure(&c); });
+    server_ = StartReconfigureServer(
+        reconfigure_mutex_, pnh, initial,
+        [this](ScanMatchingConfig& c, uint32_t) { Reconfigure(&c); });
 
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 100);

@@ -58,8 +58,9 @@ class SubmapManagerNodelet : public nodelet::Nodelet {
       if (!StartSession()) return;
     }
     SubmapManagerConfig initial = ros_params::ToSubmapManagerConfig(config_);
-    server_ = StartReconfigureServer(reconfigure_mutex_, pnh, initial);
-    server_->setCallback([this](SubmapManagerConfig& c, uint32_t) { Reconfigure(&c); });
+    server_ = StartReconfigureServer(
+        reconfigure_mutex_, pnh, initial,
+        [this](SubmapManagerConfig& c, uint32_t) { Reconfigure(&c); });
 
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     info_pub_ = nh.advertise<SubmapInfo>("submaps", 100);

@@ -27,7 +27,9 @@
 //     session has a surface or saw through, is dynamic as a whole: the
 //     place does not hold the same object in both sessions, so neither version is static.
 //     For the same reason an examined object touching an object changed on the other side
-//     is changed too when it disagrees a little itself (`changed_partner_min_fraction`).
+//     is changed too when it disagrees a little itself (`changed_partner_min_fraction`), and
+//     an object one of whose ends lies off the other session's surface facing the same way
+//     is changed (`changed_end_min_compared`: another car whose long sides coincide).
 //  6. Mending: points of the current difference set that are not dynamic and were hidden in
 //     the history session (behind what was removed) are returned for adding to the history.
 //
@@ -300,8 +302,9 @@ struct DynamicDetectionResult {
     int compared = 0;  ///< points where the other session has a surface close by or saw through
     int off_surface = 0;  ///< of those, points off that surface or seen through
     int seen_through = 0;  ///< of those, points seen through (no surface close by)
-    /// Compared points on each end of the object (own normal along its longest horizontal
-    /// axis; [0] the end towards +axis), and of those the ones that contradict.
+    /// Points on each end of the object (own normal along its longest horizontal axis; [0]
+    /// the end towards +axis) compared with the other session's surfaces facing the same
+    /// way, and of those the ones that contradict (see changed_end_min_compared).
     std::array<int, 2> end_compared{};
     std::array<int, 2> end_off{};
     bool changed = false;

@@ -52,17 +52,23 @@ struct Frames {
 Frames FramesParam(const ros::NodeHandle& pnh);
 
 /// A dynamic_reconfigure server whose very first published configuration is `initial` (the
-/// values of the configuration YAML). The values are put on the parameter server first, where
-/// the server's constructor reads them: setting them only afterwards (updateConfig) left a
-/// moment in which clients saw the .cfg defaults (found by the rostest). The caller sets the
-/// callback afterwards.
-template <class Config>
+/// values of the configuration YAML), with `callback` set. The values are put on the parameter
+/// server first, where the server's constructor reads them: setting them only afterwards
+/// (updateConfig) left a moment in which clients saw the .cfg defaults (found by the rostest).
+/// The server answers requests as soon as its constructor has advertised its service, and
+/// one that came before the callback was set was applied unchecked (the rostest once got its
+/// refused fuse_fine_above_m 0.1 back); the server's mutex is held until the callback is set,
+/// so such a request waits for it.
+template <class Config, class Callback>
 std::unique_ptr<dynamic_reconfigure::Server<Config>> StartReconfigureServer(
-    boost::recursive_mutex& mutex, const ros::NodeHandle& pnh, const Config& initial) {
+    boost::recursive_mutex& mutex, const ros::NodeHandle& pnh, const Config& initial,
+    Callback callback) {
+  boost::recursive_mutex::scoped_lock lock(mutex);
   initial.__toServer__(pnh);
   auto server = std::make_unique<dynamic_reconfigure::Server<Config>>(mutex, pnh);
   server->updateConfig(initial);  // the same values again, in case one did not survive the
                                   // parameter server round trip
+  server->setCallback(callback);
   return server;
 }
 
