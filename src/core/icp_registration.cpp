@@ -152,17 +152,6 @@ StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
                                               const Pose3& initial_guess,
                                               double max_correspondence_distance_m,
                                               double kernel_scale_m,
-                                              const IcpTranslationPrior& prior) const {
-  return Register(source, source_normals, target, initial_guess, max_correspondence_distance_m,
-                  kernel_scale_m, prior, nullptr);
-}
-
-StatusOr<IcpResult> IcpRegistration::Register(const PointVector& source,
-                                              const PointVector& source_normals,
-                                              const RegistrationTarget& target,
-                                              const Pose3& initial_guess,
-                                              double max_correspondence_distance_m,
-                                              double kernel_scale_m,
                                               const IcpTranslationPrior& prior,
                                               IcpSearchMemory* memory) const {
   if (source_normals.size() != source.size()) {

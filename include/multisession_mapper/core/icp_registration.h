@@ -166,17 +166,13 @@ class IcpRegistration {
   /// "normal" is fixed to the sensor's scan pattern; such residuals pin the estimate to the
   /// pose the target was recorded from (measured: the odometry stood still on the
   /// simulator's sessions). Normals spanning two rings of the source scan are the surface's.
+  /// `memory`: the searches' memory of the previous registration of this source against this
+  /// target (see IcpSearchMemory; the odometry's later registrations of one scan), or null.
   StatusOr<IcpResult> Register(const PointVector& source, const PointVector& source_normals,
                                const RegistrationTarget& target, const Pose3& initial_guess,
                                double max_correspondence_distance_m, double kernel_scale_m,
-                               const IcpTranslationPrior& prior = IcpTranslationPrior()) const;
-
-  /// Same, with the searches' memory of the previous registration of this source against this
-  /// target (see IcpSearchMemory; the odometry's later registrations of one scan).
-  StatusOr<IcpResult> Register(const PointVector& source, const PointVector& source_normals,
-                               const RegistrationTarget& target, const Pose3& initial_guess,
-                               double max_correspondence_distance_m, double kernel_scale_m,
-                               const IcpTranslationPrior& prior, IcpSearchMemory* memory) const;
+                               const IcpTranslationPrior& prior = IcpTranslationPrior(),
+                               IcpSearchMemory* memory = nullptr) const;
 
   /// A copy that converges at steps under these [m], [rad] (>= 0) or stops after
   /// `max_iterations` (>= 1), and shares this one's search threads (the two then take turns
