@@ -633,19 +633,21 @@ class PairDetection {
     const Side& theirs = sides_[other];
     std::vector<std::uint32_t> neighbours;
     Eigen::Vector3f normal;
-    // The object's longest horizontal axis and centroid, for its ends.
-    Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
-    for (std::uint32_t i : cluster) centroid += sides_[s].points[i].head<2>();
-    centroid /= static_cast<double>(cluster.size());
-    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
-    for (std::uint32_t i : cluster) {
-      const Eigen::Vector2d d = sides_[s].points[i].head<2>() - centroid;
-      scatter += d * d.transpose();
-    }
-    const Eigen::Vector2d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(scatter)
-                                     .eigenvectors()
-                                     .col(1);  // of the largest eigenvalue
+    // The object's longest horizontal axis and centroid, for its ends (when the rule is on).
     const bool ends = config_.changed_end_min_compared > 0;
+    Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+    Eigen::Vector2d axis = Eigen::Vector2d::UnitX();
+    if (ends) {
+      for (std::uint32_t i : cluster) centroid += sides_[s].points[i].head<2>();
+      centroid /= static_cast<double>(cluster.size());
+      Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+      for (std::uint32_t i : cluster) {
+        const Eigen::Vector2d d = sides_[s].points[i].head<2>() - centroid;
+        scatter += d * d.transpose();
+      }
+      // Eigenvalues ascend: the last eigenvector is the longest axis.
+      axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(scatter).eigenvectors().col(1);
+    }
     for (std::uint32_t i : cluster) {
       const Eigen::Vector3d& p = sides_[s].points[i];
       // Which end the point is on, if its own surface faces along the axis (-1: none).

@@ -120,10 +120,8 @@ class FeatureIndex {
 
 static_assert(FeatureIndex::kDim == kFpfhBins, "feature rows are FPFH histograms");
 
-// The coarse cloud of one submap: downsampled, cropped, with PCL normals and FPFH features.
-struct CoarseCloud {
-  PointVector points;
-  std::vector<Eigen::Vector3d> normals;  // unit; zero when the normal is undefined
+// The coarse cloud of one submap (MakeCoarsePoints) with its FPFH features.
+struct CoarseCloud : CoarsePoints {
   bool with_features = false;  // FPFH computed (valid / valid_features below)
   std::vector<int> valid;  // indices with a finite feature
   std::shared_ptr<const FeatureIndex> valid_features;  // their features; null when none
@@ -177,9 +175,7 @@ namespace {
 CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationConfig& config,
                             bool with_features) {
   CoarseCloud cloud;
-  CoarsePoints coarse = MakeCoarsePoints(points, config);
-  cloud.points = std::move(coarse.points);
-  cloud.normals = std::move(coarse.normals);
+  static_cast<CoarsePoints&>(cloud) = MakeCoarsePoints(points, config);
   if (!with_features) return cloud;
   cloud.with_features = true;
   std::vector<std::uint8_t> defined;
