@@ -21,6 +21,7 @@
 #include <octomap/OcTree.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -60,8 +61,10 @@ const char kUsage[] =
     "  --eval-range M     score only points within M of a scan origin of the other submap of a\n"
     "                     pair (25 = the detector's max_range_m; 0: every paired point)\n"
     "  --guard on|off|both  run with the height guard on, off or both (both)\n"
-    "  --per-object       list the vacated low-dynamic objects with their removed points, and\n"
-    "                     every object the changed-object step examined, with its truth\n"
+    "  --per-object       list the vacated low-dynamic objects with their removed points, the\n"
+    "                     static parked cars and movables that lost points (by the free-space\n"
+    "                     detection or in a changed object), and every object the\n"
+    "                     changed-object step examined, with its truth\n"
     "  --compare-octomap  time OctoMap key lookups against the own voxel grid on the same rays\n"
     "  --own-indices      build both neighbour indices inside every pair instead of one per\n"
     "                     submap shared by its pairs (as the merge does)\n"
@@ -81,6 +84,8 @@ const char kUsage[] =
     "                     changed_partner_min_fraction)\n";
 
 constexpr int kCanopy = 6;
+constexpr int kParkedCar = 7;
+constexpr int kMovable = 8;
 constexpr int kMovingCar = 9;
 constexpr int kPedestrian = 10;
 
@@ -573,6 +578,9 @@ int main(int argc, char** argv) {
     constexpr int kHeightBins = 12;
     long vacated_by_height[kHeightBins][2] = {};  // points, removed
     long static_removed_by_class[sim::kNumObjectClasses] = {};
+    // Static objects of a movable class (parked cars that stayed, movables present throughout):
+    // {points, removed outside a changed object (free-space detection), removed in one}.
+    std::map<std::uint32_t, std::array<long, 3>> static_movables;
     for (int s = 0; s < 2; ++s) {
       const SessionData& d = s == 0 ? H : C;
       for (std::size_t m = 0; m < d.submaps.size(); ++m) {
@@ -615,6 +623,11 @@ int main(int argc, char** argv) {
             ++static_all;
             static_kept += !removed;
             if (removed && label < sim::kNumObjectClasses) ++static_removed_by_class[label];
+            if (per_object && (label == kParkedCar || label == kMovable)) {
+              auto& counts = static_movables[d.objects[m][i]];
+              ++counts[0];
+              if (removed) ++counts[(f & 64) ? 2 : 1];
+            }
             if (f & 8) {
               ++static_near;
               static_near_kept += !removed;
@@ -703,6 +716,13 @@ int main(int argc, char** argv) {
       }
     }
     std::printf("\n");
+    for (const auto& [id, counts] : static_movables) {
+      if (counts[1] + counts[2] == 0) continue;
+      std::printf("    static object %u (%s) lost %ld/%ld points: %ld by the free-space "
+                  "detection, %ld in changed objects\n",
+                  id, objects[id].cls.c_str(), counts[1] + counts[2], counts[0], counts[1],
+                  counts[2]);
+    }
     std::printf("  canopy SA %.3f %% (%ld/%ld kept)\n", pct(canopy_kept, canopy), canopy_kept,
                 canopy);
     std::printf("  high-dynamic leftovers in the submaps: %ld, removed %ld; unlabelled %ld\n",
