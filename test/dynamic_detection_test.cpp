@@ -533,6 +533,47 @@ TEST(DynamicDetectionTest, TheSameCarInBothSessionsIsStatic) {
   }
 }
 
+// The same car seen from its two sides: the history drove between the car and the wall, the
+// current session on the road. Each session's rays pass voxels of the side only the other saw
+// (its edges and top), and the free-space detection takes parts of the car; the
+// changed-object step finds a quarter of the compared points off the other session's
+// surfaces (the side it did not see), not enough for a change, and with
+// changed_same_max_fraction the car keeps its points.
+TEST(DynamicDetectionTest, TheSameCarSeenFromItsTwoSidesKeepsItsPoints) {
+  const SessionData history = MakeSession(Scene{true}, 10.5, 63, HistoryFrame());
+  const SessionData current = MakeSession(Scene{true}, 0.3, 64, Pose3::Identity());
+  DynamicDetectionConfig off;
+  DynamicDetectionConfig same = off;
+  same.changed_same_max_fraction = 0.3;
+  const DynamicDetectionResult without = RunDetector(history, current, off);
+  const DynamicDetectionResult with = RunDetector(history, current, same);
+  for (const auto& object : with.examined_objects) {
+    const std::vector<int>& labels = object.side == 0 ? history.labels : current.labels;
+    std::printf("  examined side %d: %zu points (%d car), %d/%d off%s\n", object.side,
+                object.points.size(), CountLabel(labels, object.points, kCar, true),
+                object.off_surface, object.compared, object.changed ? " changed" : "");
+  }
+  const int history_car = CountLabel(history.labels, kCar);
+  const int current_car = CountLabel(current.labels, kCar);
+  std::printf("  car points dynamic without / with the rule: history %d / %d of %d, current "
+              "%d / %d of %d\n",
+              CountLabel(history.labels, without.history_dynamic, kCar, true),
+              CountLabel(history.labels, with.history_dynamic, kCar, true), history_car,
+              CountLabel(current.labels, without.current_dynamic, kCar, true),
+              CountLabel(current.labels, with.current_dynamic, kCar, true), current_car);
+  // Without the rule the detection takes a fifth of the history's car and some of the
+  // current's; with it none.
+  EXPECT_GE(CountLabel(history.labels, without.history_dynamic, kCar, true), history_car / 10);
+  EXPECT_GE(CountLabel(current.labels, without.current_dynamic, kCar, true), 10);
+  EXPECT_EQ(CountLabel(history.labels, with.history_dynamic, kCar, true), 0);
+  EXPECT_EQ(CountLabel(current.labels, with.current_dynamic, kCar, true), 0);
+  // Nothing else changes: the rule only keeps points of examined objects found the same.
+  EXPECT_EQ(CountLabel(history.labels, with.history_dynamic, kCar, false),
+            CountLabel(history.labels, without.history_dynamic, kCar, false));
+  EXPECT_EQ(CountLabel(current.labels, with.current_dynamic, kCar, false),
+            CountLabel(current.labels, without.current_dynamic, kCar, false));
+}
+
 TEST(DynamicDetectionTest, PorousCanopyIsNotDynamicWithoutTheHeightGuard) {
   const SessionData history = MakeSession(Scene{false}, 0.0, 31, HistoryFrame());
   const SessionData current = MakeSession(Scene{false}, 0.3, 32, Pose3::Identity());
@@ -891,6 +932,14 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   config.changed_partner_min_fraction = 0.0;  // the bounds themselves are valid
   EXPECT_TRUE(DynamicDetector::Create(config).ok());
   config.changed_partner_min_fraction = 1.0;
+  EXPECT_TRUE(DynamicDetector::Create(config).ok());
+  // changed_same_max_fraction: 0 (off) or in (0, changed_min_fraction).
+  for (double bad : {-0.1, 0.4, 0.9, std::nan("")}) {
+    config = DynamicDetectionConfig();
+    config.changed_same_max_fraction = bad;
+    EXPECT_FALSE(DynamicDetector::Create(config).ok()) << bad;
+  }
+  config.changed_same_max_fraction = 0.39;
   EXPECT_TRUE(DynamicDetector::Create(config).ok());
 
   StatusOr<DynamicDetector> detector = DynamicDetector::Create(DynamicDetectionConfig());

@@ -479,6 +479,23 @@ class PairDetection {
     return changed;
   }
 
+  // Points of side s on examined objects that are the same object in both sessions (see
+  // changed_same_max_fraction), sorted; none when the rule is off.
+  std::vector<std::uint32_t> SamePoints(
+      int s, const std::vector<DynamicDetectionResult::ExaminedObject>& examined) const {
+    std::vector<std::uint32_t> same;
+    if (!(config_.changed_same_max_fraction > 0.0)) return same;
+    for (const auto& object : examined) {
+      if (object.side == s && !object.changed &&
+          object.compared >= config_.changed_min_compared &&
+          object.off_surface <= config_.changed_same_max_fraction * object.compared) {
+        same.insert(same.end(), object.points.begin(), object.points.end());
+      }
+    }
+    std::sort(same.begin(), same.end());
+    return same;
+  }
+
   // Step 6: current points missing from the history and not seen through by it.
   std::vector<std::uint32_t> Mending(const std::vector<std::uint32_t>& current_dynamic) const {
     const Side& side = sides_[kCurrent];
@@ -1048,6 +1065,12 @@ Status DynamicDetectionConfig::Validate() const {
         "dynamic_detection.changed_min_planar_fraction and changed_partner_min_fraction must "
         "be in [0, 1] and changed_min_fraction in (0, 1]");
   }
+  if (!(changed_same_max_fraction >= 0.0) ||
+      (changed_same_max_fraction > 0.0 && !(changed_same_max_fraction < changed_min_fraction))) {
+    return Status::Error(
+        "dynamic_detection.changed_same_max_fraction must be >= 0 (0: off) and below "
+        "changed_min_fraction");
+  }
   if (changed_end_min_compared < 0 || !(changed_end_min_fraction > 0.0) ||
       !(changed_end_min_fraction <= 1.0) || !(changed_end_min_cos >= 0.0) ||
       !(changed_end_min_cos <= 1.0)) {
@@ -1203,9 +1226,14 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
           s == kHistory ? result.history_dynamic : result.current_dynamic;
       const std::vector<std::uint32_t> changed =
           PairDetection::ChangedPoints(s, result.examined_objects);
+      const std::vector<std::uint32_t> same = pair.SamePoints(s, result.examined_objects);
+      std::vector<std::uint32_t> kept;
+      kept.reserve(dynamic.size());
+      std::set_difference(dynamic.begin(), dynamic.end(), same.begin(), same.end(),
+                          std::back_inserter(kept));
       std::vector<std::uint32_t> merged;
-      merged.reserve(dynamic.size() + changed.size());
-      std::set_union(dynamic.begin(), dynamic.end(), changed.begin(), changed.end(),
+      merged.reserve(kept.size() + changed.size());
+      std::set_union(kept.begin(), kept.end(), changed.begin(), changed.end(),
                      std::back_inserter(merged));
       dynamic = std::move(merged);
     }

@@ -220,6 +220,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "changed_end_min_compared", &m.dynamics.changed_end_min_compared},
       {"low_dynamics", "changed_end_min_fraction", &m.dynamics.changed_end_min_fraction},
       {"low_dynamics", "changed_end_min_cos", &m.dynamics.changed_end_min_cos},
+      {"low_dynamics", "changed_same_max_fraction", &m.dynamics.changed_same_max_fraction},
       {"map_update", "fuse_min_overlap_ratio", &m.fusion.min_overlap_ratio},
       {"map_update", "fuse_overlap_distance_m", &m.fusion.overlap_distance_m},
       {"map_update", "fuse_voxel_m", &m.fusion.voxel_m},

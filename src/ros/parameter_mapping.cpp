@@ -166,6 +166,7 @@ namespace ros_params {
   F(low_dynamics_changed_partner_min_fraction, g.dynamics.changed_partner_min_fraction)       \
   F(low_dynamics_changed_end_min_compared, g.dynamics.changed_end_min_compared)               \
   F(low_dynamics_changed_end_min_fraction, g.dynamics.changed_end_min_fraction)               \
+  F(low_dynamics_changed_same_max_fraction, g.dynamics.changed_same_max_fraction)             \
   F(map_update_fuse_min_overlap_ratio, g.fusion.min_overlap_ratio)                            \
   F(map_update_fuse_overlap_distance_m, g.fusion.overlap_distance_m)                          \
   F(map_update_fuse_voxel_m, g.fusion.voxel_m)                                                \

@@ -81,7 +81,9 @@ const char kUsage[] =
     "                     changed_max_bottom_m, changed_min_planar_fraction,\n"
     "                     changed_neighbour_radius_m, changed_surface_distance_m,\n"
     "                     changed_min_compared, changed_min_fraction,\n"
-    "                     changed_partner_min_fraction)\n";
+    "                     changed_partner_min_fraction, changed_end_min_compared,\n"
+    "                     changed_end_min_fraction, changed_end_min_cos,\n"
+    "                     changed_same_max_fraction)\n";
 
 constexpr int kCanopy = 6;
 constexpr int kParkedCar = 7;
@@ -455,6 +457,7 @@ int main(int argc, char** argv) {
       else if (key == "changed_min_compared") config.changed_min_compared = static_cast<int>(v);
       else if (key == "changed_min_fraction") config.changed_min_fraction = v;
       else if (key == "changed_partner_min_fraction") config.changed_partner_min_fraction = v;
+      else if (key == "changed_same_max_fraction") config.changed_same_max_fraction = v;
       else {
         std::fprintf(stderr, "dynamic_detection_benchmark: unknown --set key %s\n", key.c_str());
         return 2;
