@@ -465,35 +465,36 @@ class PairDetection {
     }
   }
 
-  // The points of side s's changed objects, sorted (the objects of one side are disjoint:
-  // ExamineObjects takes every point into one cluster at most).
-  static std::vector<std::uint32_t> ChangedPoints(
-      int s, const std::vector<DynamicDetectionResult::ExaminedObject>& examined) {
-    std::vector<std::uint32_t> changed;
+  // Step 5's outcome for side s: `dynamic` (sorted) loses the points of the objects found the
+  // same in both sessions (changed_same_max_fraction) and gains those of the changed objects.
+  // The objects of one side are disjoint: ExamineObjects takes every point into one cluster at
+  // most.
+  void ApplyExamined(int s, const std::vector<DynamicDetectionResult::ExaminedObject>& examined,
+                     std::vector<std::uint32_t>* dynamic) const {
+    std::vector<std::uint32_t> changed, same;
     for (const auto& object : examined) {
-      if (object.side == s && object.changed) {
-        changed.insert(changed.end(), object.points.begin(), object.points.end());
-      }
+      if (object.side != s) continue;
+      std::vector<std::uint32_t>* into =
+          object.changed ? &changed : IsSame(object) ? &same : nullptr;
+      if (into != nullptr) into->insert(into->end(), object.points.begin(), object.points.end());
     }
     std::sort(changed.begin(), changed.end());
-    return changed;
+    std::sort(same.begin(), same.end());
+    std::vector<std::uint32_t> kept;
+    kept.reserve(dynamic->size());
+    std::set_difference(dynamic->begin(), dynamic->end(), same.begin(), same.end(),
+                        std::back_inserter(kept));
+    dynamic->clear();
+    std::set_union(kept.begin(), kept.end(), changed.begin(), changed.end(),
+                   std::back_inserter(*dynamic));
   }
 
-  // Points of side s on examined objects that are the same object in both sessions (see
-  // changed_same_max_fraction), sorted; none when the rule is off.
-  std::vector<std::uint32_t> SamePoints(
-      int s, const std::vector<DynamicDetectionResult::ExaminedObject>& examined) const {
-    std::vector<std::uint32_t> same;
-    if (!(config_.changed_same_max_fraction > 0.0)) return same;
-    for (const auto& object : examined) {
-      if (object.side == s && !object.changed &&
-          object.compared >= config_.changed_min_compared &&
-          object.off_surface <= config_.changed_same_max_fraction * object.compared) {
-        same.insert(same.end(), object.points.begin(), object.points.end());
-      }
-    }
-    std::sort(same.begin(), same.end());
-    return same;
+  // An examined object that is not changed and agrees with the other session on all but
+  // changed_same_max_fraction of at least changed_min_compared compared points (rule on).
+  bool IsSame(const DynamicDetectionResult::ExaminedObject& object) const {
+    return config_.changed_same_max_fraction > 0.0 && !object.changed &&
+           object.compared >= config_.changed_min_compared &&
+           object.off_surface <= config_.changed_same_max_fraction * object.compared;
   }
 
   // Step 6: current points missing from the history and not seen through by it.
@@ -1221,22 +1222,8 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
   if (config_.changed_objects_enabled) {
     for (int s : {kHistory, kCurrent}) pair.ExamineObjects(s, &result.examined_objects);
     pair.PartnersOfChanged(&result.examined_objects);
-    for (int s : {kHistory, kCurrent}) {
-      std::vector<std::uint32_t>& dynamic =
-          s == kHistory ? result.history_dynamic : result.current_dynamic;
-      const std::vector<std::uint32_t> changed =
-          PairDetection::ChangedPoints(s, result.examined_objects);
-      const std::vector<std::uint32_t> same = pair.SamePoints(s, result.examined_objects);
-      std::vector<std::uint32_t> kept;
-      kept.reserve(dynamic.size());
-      std::set_difference(dynamic.begin(), dynamic.end(), same.begin(), same.end(),
-                          std::back_inserter(kept));
-      std::vector<std::uint32_t> merged;
-      merged.reserve(kept.size() + changed.size());
-      std::set_union(kept.begin(), kept.end(), changed.begin(), changed.end(),
-                     std::back_inserter(merged));
-      dynamic = std::move(merged);
-    }
+    pair.ApplyExamined(kHistory, result.examined_objects, &result.history_dynamic);
+    pair.ApplyExamined(kCurrent, result.examined_objects, &result.current_dynamic);
   }
   clock(&stage.changed_s);
   result.current_mending = pair.Mending(result.current_dynamic);
