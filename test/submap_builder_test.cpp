@@ -540,12 +540,12 @@ TEST(SubmapBuilder, ParkedCarIsKept) {
       << builder.value().stats().voxels_kept;
 }
 
-// The submap's points are the centroids of its voxels, in the order the voxels were first
-// hit, every in-range point summed in scan order: a plain reference against the builder's
-// prefetching look-ups (runs of one voxel, voxels revisited out of order, scans of 0 to
-// 40 points around the look-up's lag, points out of range and not finite).
+// The submap's points are the centroids of its voxels, every in-range point summed in scan
+// order, stored in Z-order (the voxels in first-hit order, sorted): a plain reference against
+// the builder's prefetching look-ups (runs of one voxel, voxels revisited out of order, scans
+// of 0 to 40 points around the look-up's lag, points out of range and not finite).
 // With robust_height off (on: the next test).
-TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrderWithTheirViews) {
+TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInZOrderWithTheirViews) {
   SubmapBuilderConfig config;
   config.robust_height = false;
   config.dynamic_filter.enabled = false;
@@ -599,21 +599,28 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInFirstHitOrderWithTheirVi
   builder.value().FinishSession();
   const auto submaps = builder.value().TakeFinished();
   ASSERT_EQ(submaps.size(), 1u);
-  ASSERT_EQ(submaps[0].points.size(), first_hit.size());
-  for (std::size_t i = 0; i < first_hit.size(); ++i) {
-    const auto& sum = sums[{first_hit[i].x(), first_hit[i].y(), first_hit[i].z()}];
-    const Eigen::Vector3d expected = sum.first / sum.second;
-    ASSERT_EQ(submaps[0].points[i], expected) << "voxel " << i;
+  // The voxels in first-hit order, then stored in Z-order of the voxel grid (submap_test).
+  Submap expected;
+  std::set<std::uint32_t> nearest_scans;
+  for (const VoxelKey& key : first_hit) {
+    const auto& sum = sums[{key.x(), key.y(), key.z()}];
+    expected.points.push_back(sum.first / sum.second);
+    expected.views.push_back(views[{key.x(), key.y(), key.z()}].second);
+    nearest_scans.insert(expected.views.back().nearest_scan);
   }
+  SortSubmapPointsSpatially(config.voxel_size_m, &expected);
+  ASSERT_EQ(submaps[0].points.size(), first_hit.size());
   ASSERT_EQ(submaps[0].views.size(), first_hit.size());
   ASSERT_EQ(submaps[0].scans.size(), 60u);
-  std::set<std::uint32_t> nearest_scans;
+  bool reordered = false;
   for (std::size_t i = 0; i < first_hit.size(); ++i) {
-    const PointViews& expected = views[{first_hit[i].x(), first_hit[i].y(), first_hit[i].z()}].second;
-    EXPECT_EQ(submaps[0].views[i].nearest_scan, expected.nearest_scan) << "voxel " << i;
-    EXPECT_EQ(submaps[0].views[i].last_scan, expected.last_scan) << "voxel " << i;
-    nearest_scans.insert(expected.nearest_scan);
+    ASSERT_EQ(submaps[0].points[i], expected.points[i]) << "voxel " << i;
+    EXPECT_EQ(submaps[0].views[i].nearest_scan, expected.views[i].nearest_scan) << "voxel " << i;
+    EXPECT_EQ(submaps[0].views[i].last_scan, expected.views[i].last_scan) << "voxel " << i;
+    const auto& first = sums[{first_hit[i].x(), first_hit[i].y(), first_hit[i].z()}];
+    reordered = reordered || submaps[0].points[i] != first.first / first.second;
   }
+  EXPECT_TRUE(reordered);  // the Z-order is not the first-hit order here
   EXPECT_GT(nearest_scans.size(), 20u);  // the views differ from voxel to voxel
 }
 

@@ -1,5 +1,12 @@
 #include "multisession_mapper/core/submap.h"
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <random>
+#include <set>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -60,6 +67,77 @@ TEST(Submap, AppendedPointsHaveUnknownViews) {
   AppendSubmapPoints({Eigen::Vector3d(1, 2, 3)}, &plain);
   EXPECT_EQ(plain.points.size(), 3u);
   EXPECT_TRUE(plain.views.empty());
+}
+
+// The cell of `p` in blocks of `edge_m`, as a tuple (ordered, comparable).
+std::tuple<long, long, long> BlockOf(const Eigen::Vector3d& p, double edge_m) {
+  const auto cell = [&](double v) { return static_cast<long>(std::floor(v / edge_m)); };
+  return {cell(p.x()), cell(p.y()), cell(p.z())};
+}
+
+// Whether every block of `edge_m` holds one contiguous run of the points.
+bool BlocksContiguous(const PointVector& points, double edge_m) {
+  std::set<std::tuple<long, long, long>> finished;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto block = BlockOf(points[i], edge_m);
+    if (finished.count(block)) return false;  // the block came back after another one
+    if (i + 1 < points.size() && BlockOf(points[i + 1], edge_m) != block) finished.insert(block);
+  }
+  return true;
+}
+
+TEST(Submap, SpatialOrderKeepsEachPointWithItsViewsAndGroupsEveryBlock) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-30.0, 30.0);
+  Submap s;
+  for (std::uint32_t i = 0; i < 5000; ++i) {
+    s.points.emplace_back(u(rng), u(rng), 0.1 * u(rng));
+    PointViews v;
+    v.nearest_scan = i;  // the point's index before sorting
+    v.last_scan = 2 * i;
+    s.views.push_back(v);
+  }
+  const PointVector before = s.points;
+  ASSERT_FALSE(BlocksContiguous(before, 1.6));  // random order: the test below can fail
+  SortSubmapPointsSpatially(0.2, &s);
+  ASSERT_EQ(s.points.size(), before.size());
+  ASSERT_EQ(s.views.size(), before.size());
+  std::set<std::uint32_t> seen;
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    const std::uint32_t i = s.views[k].nearest_scan;
+    ASSERT_LT(i, before.size());
+    EXPECT_EQ(s.points[k], before[i]);
+    EXPECT_EQ(s.views[k].last_scan, 2 * i);
+    seen.insert(i);
+  }
+  EXPECT_EQ(seen.size(), before.size());  // a permutation
+  // Z-order: every aligned block of 2^k cells (here 1, 8 and 64 cells of 0.2 m on an edge,
+  // on both sides of the origin) is one run, so close points sit close in the vector.
+  EXPECT_TRUE(BlocksContiguous(s.points, 0.2));
+  EXPECT_TRUE(BlocksContiguous(s.points, 1.6));
+  EXPECT_TRUE(BlocksContiguous(s.points, 12.8));
+  EXPECT_FALSE(BlocksContiguous(s.points, 1.0));  // a block that is not of the grid is not
+}
+
+TEST(Submap, SpatialOrderKeepsTheOrderInsideACellAndTakesAnyPoint) {
+  Submap s;
+  // Two cells of 1 m, interleaved: (0.5, ...) and (-0.5, ...); x = -0.5 comes first.
+  for (int i = 0; i < 6; ++i) s.points.emplace_back(i % 2 ? -0.5 : 0.5, 0.1 * i, 0.0);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  s.points.emplace_back(1e9, -1e9, nan);  // far outside the code's range, and not finite
+  SortSubmapPointsSpatially(1.0, &s);  // no views: none are made up
+  EXPECT_TRUE(s.views.empty());
+  ASSERT_EQ(s.points.size(), 7u);
+  std::vector<double> cell_a, cell_b;
+  for (const Eigen::Vector3d& p : s.points) {
+    if (p.x() == -0.5) cell_a.push_back(p.y());
+    if (p.x() == 0.5) cell_b.push_back(p.y());
+  }
+  EXPECT_EQ(cell_a, (std::vector<double>{0.1, 0.30000000000000004, 0.5}));
+  EXPECT_EQ(cell_b, (std::vector<double>{0.0, 0.2, 0.4}));
+  EXPECT_EQ(std::count_if(s.points.begin(), s.points.end(),
+                          [](const Eigen::Vector3d& p) { return p.x() == 1e9; }),
+            1);
 }
 
 }  // namespace

@@ -775,7 +775,10 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     if (rm != removed.end()) DropSubmapPointsAt(rm->second, &hs);
     history_points[h] = PointVector();
     const auto add = added_to_history.find(h);
-    if (add != added_to_history.end()) AppendSubmapPoints(add->second, &hs);
+    if (add != added_to_history.end()) {
+      AppendSubmapPoints(add->second, &hs);
+      SortSubmapPointsSpatially(8.0 * config_.fusion.voxel_m, &hs);  // the added points in place
+    }
     const auto md = mended_added.find(h);
     if (md != mended_added.end()) change.mended_m = md->second;
     report.points_removed += change.removed_m.size();

@@ -1,6 +1,8 @@
 #include "multisession_mapper/core/submap.h"
 
 #include <algorithm>
+#include <cmath>
+#include <utility>
 
 namespace multisession_mapper {
 namespace core {
@@ -65,6 +67,55 @@ void DropSubmapPointsAt(const std::set<std::uint32_t>& indices, Submap* submap) 
     if (k < drop.size()) drop[k] = 1;
   }
   DropSubmapPoints(drop, submap);
+}
+
+namespace {
+
+// The 21 low bits of v spread to every third bit (bit k moves to bit 3k).
+std::uint64_t SpreadBits3(std::uint64_t v) {
+  v &= 0x1fffffULL;
+  v = (v | (v << 32)) & 0x1f00000000ffffULL;
+  v = (v | (v << 16)) & 0x1f0000ff0000ffULL;
+  v = (v | (v << 8)) & 0x100f00f00f00f00fULL;
+  v = (v | (v << 4)) & 0x10c30c30c30c30c3ULL;
+  v = (v | (v << 2)) & 0x1249249249249249ULL;
+  return v;
+}
+
+std::uint64_t MortonCode(const Eigen::Vector3d& p, double inv_cell) {
+  constexpr double kHalf = 1 << 20;  // cell 0 sits at the middle of the 21-bit range
+  std::uint64_t code = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double c = std::floor(p[axis] * inv_cell) + kHalf;
+    const double clamped = std::isfinite(c) ? std::min(std::max(c, 0.0), 2.0 * kHalf - 1.0) : 0.0;
+    code |= SpreadBits3(static_cast<std::uint64_t>(clamped)) << axis;
+  }
+  return code;
+}
+
+}  // namespace
+
+void SortSubmapPointsSpatially(double cell_m, Submap* submap) {
+  PointVector& points = submap->points;
+  std::vector<PointViews>& views = submap->views;
+  const bool has_views = views.size() == points.size();
+  const double inv_cell = 1.0 / cell_m;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    order[i] = {MortonCode(points[i], inv_cell), static_cast<std::uint32_t>(i)};
+  }
+  // (code, index) pairs are unique: std::sort keeps the points of one cell in their order.
+  std::sort(order.begin(), order.end());
+  PointVector sorted_points;
+  sorted_points.reserve(points.size());
+  std::vector<PointViews> sorted_views;
+  if (has_views) sorted_views.reserve(points.size());
+  for (const auto& entry : order) {
+    sorted_points.push_back(points[entry.second]);
+    if (has_views) sorted_views.push_back(views[entry.second]);
+  }
+  points = std::move(sorted_points);
+  if (has_views) views = std::move(sorted_views);
 }
 
 void AppendSubmapPoints(const PointVector& points, Submap* submap) {

@@ -74,6 +74,13 @@ void DropSubmapPointsAt(const std::set<std::uint32_t>& indices, Submap* submap);
 /// Appends points (submap frame) of unknown views (e.g. from another session's scans); the
 /// submap keeps recording views only if it did.
 void AppendSubmapPoints(const PointVector& points, Submap* submap);
+/// Puts the points (and their views) in Z-order (Morton order) of cells of `cell_m` in the
+/// submap frame; points of one cell keep their order. Close points then sit close in memory:
+/// every neighbour search over the submap (kd-tree builds and queries of the pair detection,
+/// registration, fusion) walks the index in nearly the order it is laid out. The order carries
+/// no meaning otherwise (a map with its points in any order is valid). Cells beyond 2^20 of
+/// them from the origin (~100 km at 0.1 m) share the outermost cell. `cell_m` > 0.
+void SortSubmapPointsSpatially(double cell_m, Submap* submap);
 
 }  // namespace core
 }  // namespace multisession_mapper
