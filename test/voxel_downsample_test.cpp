@@ -1,6 +1,9 @@
 #include "multisession_mapper/core/voxel_downsample.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <tuple>
@@ -47,6 +50,48 @@ TEST(VoxelDownsampleTest, NonPositiveVoxelReturnsInput) {
   const PointVector pts = RandomPoints(100, 2, 5.0);
   EXPECT_EQ(VoxelDownsample(pts, 0.0).size(), pts.size());
   EXPECT_EQ(VoxelDownsample(pts, -1.0).size(), pts.size());
+}
+
+TEST(VoxelDownsampleTest, CentredKeepsThePointNearestEachVoxelsCentre) {
+  const PointVector pts = RandomPoints(20000, 3, 5.0);  // ~30 points per voxel
+  const double size = 0.7;
+  std::map<std::tuple<long, long, long>, std::pair<double, Eigen::Vector3d>> best;
+  for (const Eigen::Vector3d& p : pts) {
+    const auto key = Key(p, size);
+    const Eigen::Vector3d centre((std::get<0>(key) + 0.5) * size, (std::get<1>(key) + 0.5) * size,
+                                 (std::get<2>(key) + 0.5) * size);
+    const double d2 = (p - centre).squaredNorm();
+    auto it = best.find(key);
+    if (it == best.end() || d2 < it->second.first) best[key] = {d2, p};
+  }
+  const PointVector out = VoxelDownsampleCentred(pts, size);
+  ASSERT_EQ(out.size(), best.size());
+  std::set<std::tuple<long, long, long>> keys;
+  for (const Eigen::Vector3d& p : out) {
+    const auto key = Key(p, size);
+    EXPECT_TRUE(keys.insert(key).second);  // one point per voxel
+    EXPECT_EQ(p, best[key].second);
+  }
+  // The first-point rule picks other points from the same voxels: the rules differ here.
+  const PointVector first = VoxelDownsample(pts, size);
+  ASSERT_EQ(first.size(), out.size());
+  EXPECT_GT(std::count_if(first.begin(), first.end(),
+                          [&](const Eigen::Vector3d& p) { return p != best[Key(p, size)].second; }),
+            static_cast<long>(first.size() / 2));
+}
+
+TEST(VoxelDownsampleTest, CentredDoesNotDependOnTheInputOrder) {
+  PointVector pts = RandomPoints(5000, 4, 10.0);
+  pts.push_back(pts[17]);  // an exact duplicate: a tie
+  pts.emplace_back(std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0);  // left out
+  const PointVector out = VoxelDownsampleCentred(pts, 0.5);
+  std::mt19937 rng(5);
+  for (int round = 0; round < 3; ++round) {
+    std::shuffle(pts.begin(), pts.end(), rng);
+    EXPECT_EQ(VoxelDownsampleCentred(pts, 0.5), out);
+  }
+  for (const Eigen::Vector3d& p : out) EXPECT_TRUE(p.allFinite());
+  EXPECT_EQ(VoxelDownsampleCentred(pts, 0.0).size(), pts.size());
 }
 
 TEST(VoxelDownsampleTest, ScanVersionKeepsAttributesAndFlags) {

@@ -135,9 +135,9 @@ PointVector CropAndDownsample(const PointVector& points, double voxel_m, double 
     for (const Eigen::Vector3d& p : points) {
       if (p.squaredNorm() <= max_sq) cropped.push_back(p);
     }
-    return VoxelDownsample(cropped, voxel_m);
+    return VoxelDownsampleCentred(cropped, voxel_m);
   }
-  return VoxelDownsample(points, voxel_m);
+  return VoxelDownsampleCentred(points, voxel_m);
 }
 
 }  // namespace
@@ -487,7 +487,7 @@ StatusOr<std::shared_ptr<const PreparedSubmap>> GlobalRegistration::Prepare(
       with_features && config_.method == GlobalRegistrationConfig::Method::kFpfhRansac);
   // The fine stage (ICP and overlap) runs on the source at its ICP voxel: the overlap ratio of
   // the downsampled source is the same fraction, at a fraction of the cost.
-  prepared->fine_source = VoxelDownsample(points, config_.fine.source_voxel_m);
+  prepared->fine_source = VoxelDownsampleCentred(points, config_.fine.source_voxel_m);
   if (as_target) {
     StatusOr<SubmapTarget> target = SubmapTarget::Create(points, config_.fine);
     if (!target.ok()) return target.status();

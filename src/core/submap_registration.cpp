@@ -41,7 +41,7 @@ Status SubmapRegistrationConfig::Validate() const {
 StatusOr<SubmapTarget> SubmapTarget::Create(const PointVector& points,
                                             const SubmapRegistrationConfig& config) {
   StatusOr<KdTreeTarget> tree =
-      KdTreeTarget::Create(VoxelDownsample(points, config.target_voxel_m), config.target);
+      KdTreeTarget::Create(VoxelDownsampleCentred(points, config.target_voxel_m), config.target);
   if (!tree.ok()) return tree.status();
   return SubmapTarget(std::make_shared<KdTreeTarget>(std::move(tree.value())),
                       config.target_voxel_m, config.target);
@@ -83,7 +83,7 @@ SubmapRegistrationResult SubmapRegistration::Register(const PointVector& source_
                                                       const SubmapTarget& target,
                                                       const Pose3& prior) const {
   SubmapRegistrationResult result;
-  const PointVector source = VoxelDownsample(source_points, config_.source_voxel_m);
+  const PointVector source = VoxelDownsampleCentred(source_points, config_.source_voxel_m);
   Pose3 estimate = prior;
   // Each distance's first search starts from the last one's matches (same results).
   IcpSearchMemory memory;

@@ -88,7 +88,8 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
   for (const Eigen::Vector3d& p : points) {
     if (p.z() > config.min_height_m) high.push_back(p);
   }
-  StatusOr<PointIndex> index = PointIndex::Create(VoxelDownsample(high, config.voxel_size_m));
+  StatusOr<PointIndex> index =
+      PointIndex::Create(VoxelDownsampleCentred(high, config.voxel_size_m));
   if (!index.ok()) return evidence;  // a non-finite point: no evidence rather than a bad one
   const PointVector& thinned = index.value().points();
 
