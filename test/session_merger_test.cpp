@@ -403,6 +403,17 @@ TEST_F(SessionMergerTest, FusedGroundFillsTheHistorysGapsAtTheFineVoxel) {
   // High surfaces (walls above fine_above_m) are fine as well.
   EXPECT_GT(high_fine, high_coarse);
   EXPECT_GT(fine.value().points_fused, coarse.value().points_fused);
+  // The history submaps that gained points hold them in their place of the Z-order (sorting
+  // again changes nothing), not appended at the end.
+  int grown = 0;
+  for (std::size_t i = 0; i < map_coarse_before.submaps.size(); ++i) {
+    if (map.submaps[i].points.size() <= map_coarse_before.submaps[i].points.size()) continue;
+    ++grown;
+    Submap sorted = map.submaps[i];
+    SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config.fusion.voxel_m, &sorted);
+    EXPECT_EQ(sorted.points, map.submaps[i].points) << "submap " << i;
+  }
+  EXPECT_GT(grown, 0);
   // Standing structure: the same fusion (a few points differ: the hold's ground estimate
   // and the one-point-per-voxel record see the added ground points).
   EXPECT_NEAR(static_cast<double>(standing_fine), static_cast<double>(standing_coarse),

@@ -599,7 +599,7 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInZOrderWithTheirViews) {
   builder.value().FinishSession();
   const auto submaps = builder.value().TakeFinished();
   ASSERT_EQ(submaps.size(), 1u);
-  // The voxels in first-hit order, then stored in Z-order of the voxel grid (submap_test).
+  // The voxels in first-hit order, then stored in Z-order of blocks of voxels (submap_test).
   Submap expected;
   std::set<std::uint32_t> nearest_scans;
   for (const VoxelKey& key : first_hit) {
@@ -608,7 +608,7 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInZOrderWithTheirViews) {
     expected.views.push_back(views[{key.x(), key.y(), key.z()}].second);
     nearest_scans.insert(expected.views.back().nearest_scan);
   }
-  SortSubmapPointsSpatially(config.voxel_size_m, &expected);
+  SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config.voxel_size_m, &expected);
   ASSERT_EQ(submaps[0].points.size(), first_hit.size());
   ASSERT_EQ(submaps[0].views.size(), first_hit.size());
   ASSERT_EQ(submaps[0].scans.size(), 60u);

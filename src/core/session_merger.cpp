@@ -777,7 +777,8 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     const auto add = added_to_history.find(h);
     if (add != added_to_history.end()) {
       AppendSubmapPoints(add->second, &hs);
-      SortSubmapPointsSpatially(8.0 * config_.fusion.voxel_m, &hs);  // the added points in place
+      // The added points in place (blocks of the fusion voxel, the submaps' by default).
+      SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config_.fusion.voxel_m, &hs);
     }
     const auto md = mended_added.find(h);
     if (md != mended_added.end()) change.mended_m = md->second;

@@ -81,6 +81,10 @@ void AppendSubmapPoints(const PointVector& points, Submap* submap);
 /// no meaning otherwise (a map with its points in any order is valid). Cells beyond 2^20 of
 /// them from the origin (~100 km at 0.1 m) share the outermost cell. `cell_m` > 0.
 void SortSubmapPointsSpatially(double cell_m, Submap* submap);
+/// The pipeline sorts a submap by blocks of this many of its voxels (1.6 m at 0.2 m): within a
+/// block the points stay in the order first measured, whose views repeat and compress (submap
+/// files of seed-2 s00: +2.4 % against +5.1 % for cells of one voxel), at the same speed.
+constexpr double kSpatialOrderBlockVoxels = 8.0;
 
 }  // namespace core
 }  // namespace multisession_mapper
