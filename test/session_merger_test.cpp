@@ -412,6 +412,11 @@ TEST_F(SessionMergerTest, FusedGroundFillsTheHistorysGapsAtTheFineVoxel) {
     Submap sorted = map.submaps[i];
     SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config.fusion.voxel_m, &sorted);
     EXPECT_EQ(sorted.points, map.submaps[i].points) << "submap " << i;
+    ASSERT_EQ(sorted.views.size(), map.submaps[i].views.size());
+    for (std::size_t k = 0; k < sorted.views.size(); ++k) {
+      EXPECT_EQ(sorted.views[k].nearest_scan, map.submaps[i].views[k].nearest_scan);
+      EXPECT_EQ(sorted.views[k].last_scan, map.submaps[i].views[k].last_scan);
+    }
   }
   EXPECT_GT(grown, 0);
   // Standing structure: the same fusion (a few points differ: the hold's ground estimate

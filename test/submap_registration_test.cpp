@@ -1,6 +1,8 @@
 #include "multisession_mapper/core/submap_registration.h"
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -53,6 +55,27 @@ TEST(SubmapRegistrationTest, RegistersFromAPerturbedPriorAndAcceptsTheLoop) {
   EXPECT_LT(se3::TranslationNorm(error), 0.05);
   EXPECT_LT(se3::RotationAngleRad(error), 0.2 * kDeg);
   EXPECT_GT(result.overlap_ratio, config.min_overlap_ratio);
+}
+
+// A submap's points may come in any order (they are stored in Z-order since session 69): the
+// registration samples them independently of it, so shuffled submaps give the same result to
+// the bit.
+TEST(SubmapRegistrationTest, ThePointOrderChangesNothing) {
+  const SubmapPair pair = MakeSubmapPair();
+  const SubmapRegistrationConfig config;
+  const SubmapRegistration registration = SubmapRegistration::Create(config).value();
+  const Pose3 prior = pair.T_target_source * se3::FromXyzRpy(0.3, -0.2, 0.0, 0.0, 0.0, 2 * kDeg);
+  const SubmapRegistrationResult result = registration.Register(
+      pair.source, SubmapTarget::Create(pair.target, config).value(), prior);
+  ASSERT_TRUE(result.accepted) << result.reason;
+  PointVector source = pair.source, target = pair.target;
+  std::mt19937 rng(3);
+  std::shuffle(source.begin(), source.end(), rng);
+  std::shuffle(target.begin(), target.end(), rng);
+  const SubmapRegistrationResult shuffled =
+      registration.Register(source, SubmapTarget::Create(target, config).value(), prior);
+  EXPECT_EQ(shuffled.T_target_source.matrix(), result.T_target_source.matrix());
+  EXPECT_EQ(shuffled.overlap_ratio, result.overlap_ratio);
 }
 
 // The merger's proximity search takes over the targets the inter-session matching built when

@@ -1,5 +1,6 @@
 #include "multisession_mapper/core/vertical_structure.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -130,6 +131,20 @@ TEST(VerticalStructureTest, ThreadsChangeNothing) {
   }
   config.threads = 0;
   EXPECT_FALSE(config.Validate().ok());
+}
+
+TEST(VerticalStructureTest, ThePointOrderChangesNothing) {
+  // A submap's points may come in any order: the wall sample does not depend on it.
+  std::mt19937 rng(6);
+  PointVector world = Courtyard(&rng);
+  const VerticalStructureConfig config;
+  const VerticalEvidence evidence = EstimateVerticalEvidence(world, config);
+  ASSERT_TRUE(evidence.valid);
+  std::shuffle(world.begin(), world.end(), rng);
+  const VerticalEvidence shuffled = EstimateVerticalEvidence(world, config);
+  EXPECT_EQ(shuffled.wall_points, evidence.wall_points);
+  EXPECT_EQ(shuffled.up, evidence.up);
+  EXPECT_EQ(shuffled.information, evidence.information);
 }
 
 TEST(VerticalStructureTest, ParallelWallsConstrainOnlyTheTiltAboutTheirNormal) {

@@ -92,6 +92,15 @@ TEST(VoxelDownsampleTest, CentredDoesNotDependOnTheInputOrder) {
   }
   for (const Eigen::Vector3d& p : out) EXPECT_TRUE(p.allFinite());
   EXPECT_EQ(VoxelDownsampleCentred(pts, 0.0).size(), pts.size());
+  // Ordered by voxel: each voxel once, in increasing order of its (x, y, z) cell.
+  for (std::size_t i = 1; i < out.size(); ++i) EXPECT_LT(Key(out[i - 1], 0.5), Key(out[i], 0.5));
+}
+
+TEST(VoxelDownsampleTest, CentredBreaksATieBetweenTwoPointsByTheirCoordinates) {
+  // Mirrored about the centre of voxel (0, 0, 0) of 1 m: the same distance, either order.
+  const Eigen::Vector3d low(0.25, 0.5, 0.5), high(0.75, 0.5, 0.5);
+  EXPECT_EQ(VoxelDownsampleCentred({high, low}, 1.0), PointVector{low});
+  EXPECT_EQ(VoxelDownsampleCentred({low, high}, 1.0), PointVector{low});
 }
 
 TEST(VoxelDownsampleTest, ScanVersionKeepsAttributesAndFlags) {

@@ -181,8 +181,8 @@ CoarseCloud MakeCoarseCloud(const PointVector& points, const GlobalRegistrationC
   std::vector<std::uint8_t> defined;
   StatusOr<std::vector<float>> features =
       ComputeFpfh(cloud.points, cloud.normals, config.feature_radius_m, &defined);
-  // Fails only on a non-finite point: the submap then has no features (and no consistent
-  // feature matches).
+  // Fails only on a non-finite point (which the sampling leaves out; kept as a guard): the
+  // submap then has no features (and no consistent feature matches).
   if (!features.ok()) return cloud;
   std::vector<float> rows;
   for (std::size_t i = 0; i < defined.size(); ++i) {

@@ -115,7 +115,11 @@ void SortSubmapPointsSpatially(double cell_m, Submap* submap) {
     if (has_views) sorted_views.push_back(views[entry.second]);
   }
   points = std::move(sorted_points);
-  if (has_views) views = std::move(sorted_views);
+  if (has_views) {
+    views = std::move(sorted_views);
+  } else {
+    views.clear();
+  }
 }
 
 void AppendSubmapPoints(const PointVector& points, Submap* submap) {

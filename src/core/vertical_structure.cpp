@@ -90,7 +90,7 @@ VerticalEvidence EstimateVerticalEvidence(const PointVector& points,
   }
   StatusOr<PointIndex> index =
       PointIndex::Create(VoxelDownsampleCentred(high, config.voxel_size_m));
-  if (!index.ok()) return evidence;  // a non-finite point: no evidence rather than a bad one
+  if (!index.ok()) return evidence;  // (the sampling leaves out non-finite points; a guard)
   const PointVector& thinned = index.value().points();
 
   // Normals of planar patches that are roughly vertical in the submap frame, computed in

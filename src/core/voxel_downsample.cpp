@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 namespace multisession_mapper {
@@ -20,36 +21,40 @@ std::uint64_t VoxelKey(const Eigen::Vector3d& p, double inv_size) {
   return (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
 }
 
-std::size_t Mix(std::uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdULL;
-  k ^= k >> 33;
-  return static_cast<std::size_t>(k);
-}
-
-// Minimal open-addressing set of voxel keys sized for the input; returns true on first insert.
-class FlatKeySet {
+// Minimal open-addressing table of voxel keys sized for the input (at most half full, so a
+// probe always ends). Insert gives the key's slot and whether the key was new there; slots
+// run from 0 to capacity() - 1, and Key(slot) is kEmpty for a free one.
+class FlatKeyTable {
  public:
-  explicit FlatKeySet(std::size_t expected) {
+  static constexpr std::uint64_t kEmpty = ~std::uint64_t{0};  // never a valid 63-bit key
+
+  explicit FlatKeyTable(std::size_t expected) {
     std::size_t capacity = 64;
     while (capacity < expected * 2) capacity <<= 1;
     slots_.assign(capacity, kEmpty);
     mask_ = capacity - 1;
   }
-  bool Insert(std::uint64_t key) {
+  std::pair<std::size_t, bool> Insert(std::uint64_t key) {
     std::size_t i = Mix(key) & mask_;
     while (true) {
       if (slots_[i] == kEmpty) {
         slots_[i] = key;
-        return true;
+        return {i, true};
       }
-      if (slots_[i] == key) return false;
+      if (slots_[i] == key) return {i, false};
       i = (i + 1) & mask_;
     }
   }
+  std::size_t capacity() const { return slots_.size(); }
+  std::uint64_t Key(std::size_t slot) const { return slots_[slot]; }
 
  private:
-  static constexpr std::uint64_t kEmpty = ~std::uint64_t{0};  // never a valid 63-bit key
+  static std::size_t Mix(std::uint64_t k) {
+    k ^= k >> 33;
+    k *= 0xff51afd7ed558ccdULL;
+    k ^= k >> 33;
+    return static_cast<std::size_t>(k);
+  }
   std::vector<std::uint64_t> slots_;
   std::size_t mask_ = 0;
 };
@@ -59,11 +64,11 @@ class FlatKeySet {
 PointVector VoxelDownsample(const PointVector& points, double voxel_size_m) {
   if (!(voxel_size_m > 0.0)) return points;
   const double inv = 1.0 / voxel_size_m;
-  FlatKeySet seen(points.size());
+  FlatKeyTable seen(points.size());
   PointVector out;
   out.reserve(points.size() / 2);
   for (const Eigen::Vector3d& p : points) {
-    if (seen.Insert(VoxelKey(p, inv))) out.push_back(p);
+    if (seen.Insert(VoxelKey(p, inv)).second) out.push_back(p);
   }
   return out;
 }
@@ -71,46 +76,36 @@ PointVector VoxelDownsample(const PointVector& points, double voxel_size_m) {
 PointVector VoxelDownsampleCentred(const PointVector& points, double voxel_size_m) {
   if (!(voxel_size_m > 0.0)) return points;
   const double inv = 1.0 / voxel_size_m;
-  // Open addressing from voxel key to the best point so far (one pass), then the winners
-  // sorted by key: a sort of the voxels, not of the points.
-  struct Slot {
-    std::uint64_t key;
-    double distance_sq;  // of the best point to the voxel's centre
+  // One pass keeps each voxel's best point so far in its slot; then the winners are sorted by
+  // key: a sort of the voxels, not of the points.
+  struct Best {
+    double distance_sq;  // to the voxel's centre
     std::uint32_t index;
   };
-  constexpr std::uint64_t kEmpty = ~std::uint64_t{0};  // never a valid 63-bit key
-  std::size_t capacity = 64;
-  while (capacity < points.size() * 2) capacity <<= 1;
-  const std::size_t mask = capacity - 1;
-  std::vector<Slot> slots(capacity, Slot{kEmpty, 0.0, 0});
-  const auto better = [&](double d2, std::uint32_t i, const Slot& slot) {
-    if (d2 != slot.distance_sq) return d2 < slot.distance_sq;
-    const Eigen::Vector3d& a = points[i];
-    const Eigen::Vector3d& b = points[slot.index];
-    return std::make_tuple(a.x(), a.y(), a.z()) < std::make_tuple(b.x(), b.y(), b.z());
+  FlatKeyTable table(points.size());
+  std::vector<Best> best(table.capacity());
+  const auto better = [&](double d2, std::uint32_t i, const Best& b) {
+    if (d2 != b.distance_sq) return d2 < b.distance_sq;
+    const Eigen::Vector3d& p = points[i];
+    const Eigen::Vector3d& q = points[b.index];
+    return std::make_tuple(p.x(), p.y(), p.z()) < std::make_tuple(q.x(), q.y(), q.z());
   };
   std::size_t used = 0;
   for (std::size_t n = 0; n < points.size(); ++n) {
     const Eigen::Vector3d& p = points[n];
     if (!p.allFinite()) continue;  // no voxel
-    const std::uint64_t key = VoxelKey(p, inv);
     const Eigen::Vector3d centre = ((p * inv).array().floor() + 0.5).matrix() * voxel_size_m;
     const double d2 = (p - centre).squaredNorm();
     const auto i = static_cast<std::uint32_t>(n);
-    std::size_t s = Mix(key) & mask;
-    while (slots[s].key != kEmpty && slots[s].key != key) s = (s + 1) & mask;
-    if (slots[s].key == kEmpty) {
-      slots[s] = {key, d2, i};
-      ++used;
-    } else if (better(d2, i, slots[s])) {
-      slots[s].distance_sq = d2;
-      slots[s].index = i;
-    }
+    const auto [slot, inserted] = table.Insert(VoxelKey(p, inv));
+    if (inserted || better(d2, i, best[slot])) best[slot] = {d2, i};
+    used += inserted;
   }
   std::vector<std::pair<std::uint64_t, std::uint32_t>> winners;
   winners.reserve(used);
-  for (const Slot& slot : slots) {
-    if (slot.key != kEmpty) winners.emplace_back(slot.key, slot.index);
+  for (std::size_t slot = 0; slot < table.capacity(); ++slot) {
+    const std::uint64_t key = table.Key(slot);
+    if (key != FlatKeyTable::kEmpty) winners.emplace_back(key, best[slot].index);
   }
   std::sort(winners.begin(), winners.end());
   PointVector out;
@@ -122,14 +117,14 @@ PointVector VoxelDownsampleCentred(const PointVector& points, double voxel_size_
 LidarScan VoxelDownsample(const LidarScan& scan, double voxel_size_m) {
   if (!(voxel_size_m > 0.0)) return scan;
   const double inv = 1.0 / voxel_size_m;
-  FlatKeySet seen(scan.points.size());
+  FlatKeyTable seen(scan.points.size());
   LidarScan out;
   out.stamp_s = scan.stamp_s;
   out.has_ring = scan.has_ring;
   out.has_time = scan.has_time;
   out.points.reserve(scan.points.size() / 2);
   for (const LidarPoint& p : scan.points) {
-    if (seen.Insert(VoxelKey(p.position_m.cast<double>(), inv))) out.points.push_back(p);
+    if (seen.Insert(VoxelKey(p.position_m.cast<double>(), inv)).second) out.points.push_back(p);
   }
   return out;
 }
