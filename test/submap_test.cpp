@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "voxel_cell.h"
+
 namespace multisession_mapper {
 namespace core {
 namespace {
@@ -68,19 +70,15 @@ TEST(Submap, AppendedPointsHaveUnknownViews) {
   EXPECT_TRUE(plain.views.empty());
 }
 
-// The cell of `p` in blocks of `edge_m`, as a tuple (ordered, comparable).
-std::tuple<long, long, long> BlockOf(const Eigen::Vector3d& p, double edge_m) {
-  const auto cell = [&](double v) { return static_cast<long>(std::floor(v / edge_m)); };
-  return {cell(p.x()), cell(p.y()), cell(p.z())};
-}
+using test::CellOf;
 
 // Whether every block of `edge_m` holds one contiguous run of the points.
 bool BlocksContiguous(const PointVector& points, double edge_m) {
   std::set<std::tuple<long, long, long>> finished;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const auto block = BlockOf(points[i], edge_m);
+    const auto block = CellOf(points[i], edge_m);
     if (finished.count(block)) return false;  // the block came back after another one
-    if (i + 1 < points.size() && BlockOf(points[i + 1], edge_m) != block) finished.insert(block);
+    if (i + 1 < points.size() && CellOf(points[i + 1], edge_m) != block) finished.insert(block);
   }
   return true;
 }

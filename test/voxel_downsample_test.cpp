@@ -10,14 +10,13 @@
 
 #include <gtest/gtest.h>
 
+#include "voxel_cell.h"
+
 namespace multisession_mapper {
 namespace core {
 namespace {
 
-std::tuple<long, long, long> Key(const Eigen::Vector3d& p, double size) {
-  return {static_cast<long>(std::floor(p.x() / size)), static_cast<long>(std::floor(p.y() / size)),
-          static_cast<long>(std::floor(p.z() / size))};
-}
+using test::CellOf;
 
 PointVector RandomPoints(int n, unsigned seed, double extent) {
   std::mt19937 rng(seed);
@@ -34,7 +33,7 @@ TEST(VoxelDownsampleTest, KeepsFirstPointOfEveryOccupiedVoxel) {
   std::set<std::tuple<long, long, long>> expected_keys;
   PointVector expected;
   for (const Eigen::Vector3d& p : pts) {
-    if (expected_keys.insert(Key(p, size)).second) expected.push_back(p);
+    if (expected_keys.insert(CellOf(p, size)).second) expected.push_back(p);
   }
   ASSERT_EQ(out.size(), expected.size());
   for (std::size_t i = 0; i < out.size(); ++i) EXPECT_EQ(out[i], expected[i]);
@@ -57,7 +56,7 @@ TEST(VoxelDownsampleTest, CentredKeepsThePointNearestEachVoxelsCentre) {
   const double size = 0.7;
   std::map<std::tuple<long, long, long>, std::pair<double, Eigen::Vector3d>> best;
   for (const Eigen::Vector3d& p : pts) {
-    const auto key = Key(p, size);
+    const auto key = CellOf(p, size);
     const Eigen::Vector3d centre((std::get<0>(key) + 0.5) * size, (std::get<1>(key) + 0.5) * size,
                                  (std::get<2>(key) + 0.5) * size);
     const double d2 = (p - centre).squaredNorm();
@@ -68,7 +67,7 @@ TEST(VoxelDownsampleTest, CentredKeepsThePointNearestEachVoxelsCentre) {
   ASSERT_EQ(out.size(), best.size());
   std::set<std::tuple<long, long, long>> keys;
   for (const Eigen::Vector3d& p : out) {
-    const auto key = Key(p, size);
+    const auto key = CellOf(p, size);
     EXPECT_TRUE(keys.insert(key).second);  // one point per voxel
     EXPECT_EQ(p, best[key].second);
   }
@@ -76,7 +75,9 @@ TEST(VoxelDownsampleTest, CentredKeepsThePointNearestEachVoxelsCentre) {
   const PointVector first = VoxelDownsample(pts, size);
   ASSERT_EQ(first.size(), out.size());
   EXPECT_GT(std::count_if(first.begin(), first.end(),
-                          [&](const Eigen::Vector3d& p) { return p != best[Key(p, size)].second; }),
+                          [&](const Eigen::Vector3d& p) {
+                            return p != best[CellOf(p, size)].second;
+                          }),
             static_cast<long>(first.size() / 2));
 }
 
@@ -93,7 +94,9 @@ TEST(VoxelDownsampleTest, CentredDoesNotDependOnTheInputOrder) {
   for (const Eigen::Vector3d& p : out) EXPECT_TRUE(p.allFinite());
   EXPECT_EQ(VoxelDownsampleCentred(pts, 0.0).size(), pts.size());
   // Ordered by voxel: each voxel once, in increasing order of its (x, y, z) cell.
-  for (std::size_t i = 1; i < out.size(); ++i) EXPECT_LT(Key(out[i - 1], 0.5), Key(out[i], 0.5));
+  for (std::size_t i = 1; i < out.size(); ++i) {
+    EXPECT_LT(CellOf(out[i - 1], 0.5), CellOf(out[i], 0.5));
+  }
 }
 
 TEST(VoxelDownsampleTest, CentredBreaksATieBetweenTwoPointsByTheirCoordinates) {

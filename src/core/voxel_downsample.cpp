@@ -11,14 +11,17 @@ namespace multisession_mapper {
 namespace core {
 namespace {
 
+// The key of a voxel given by its integer coordinates (floor(p / size), as doubles).
 // 21 bits per axis: +-1M voxels, i.e. +-100 km at 0.1 m, far beyond any LiDAR range.
-std::uint64_t VoxelKey(const Eigen::Vector3d& p, double inv_size) {
-  const auto axis = [inv_size](double v) {
-    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(v * inv_size)) +
-                                      (1 << 20)) &
-           0x1FFFFFu;
+std::uint64_t CellKey(const Eigen::Vector3d& cell) {
+  const auto axis = [](double c) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(c) + (1 << 20)) & 0x1FFFFFu;
   };
-  return (axis(p.x()) << 42) | (axis(p.y()) << 21) | axis(p.z());
+  return (axis(cell.x()) << 42) | (axis(cell.y()) << 21) | axis(cell.z());
+}
+
+std::uint64_t VoxelKey(const Eigen::Vector3d& p, double inv_size) {
+  return CellKey((p * inv_size).array().floor().matrix());
 }
 
 // Minimal open-addressing table of voxel keys sized for the input (at most half full, so a
@@ -94,10 +97,10 @@ PointVector VoxelDownsampleCentred(const PointVector& points, double voxel_size_
   for (std::size_t n = 0; n < points.size(); ++n) {
     const Eigen::Vector3d& p = points[n];
     if (!p.allFinite()) continue;  // no voxel
-    const Eigen::Vector3d centre = ((p * inv).array().floor() + 0.5).matrix() * voxel_size_m;
-    const double d2 = (p - centre).squaredNorm();
+    const Eigen::Vector3d cell = (p * inv).array().floor().matrix();  // key and centre
+    const double d2 = (p - (cell.array() + 0.5).matrix() * voxel_size_m).squaredNorm();
     const auto i = static_cast<std::uint32_t>(n);
-    const auto [slot, inserted] = table.Insert(VoxelKey(p, inv));
+    const auto [slot, inserted] = table.Insert(CellKey(cell));
     if (inserted || better(d2, i, best[slot])) best[slot] = {d2, i};
     used += inserted;
   }
