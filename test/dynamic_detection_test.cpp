@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <string>
 #include <unordered_map>
@@ -244,6 +245,7 @@ TEST(DynamicDetectionTest, CarThatLeftIsRemovedDownToItsWheels) {
   const SessionData history = MakeSession(Scene{true, grounded}, 0.0, 11, HistoryFrame());
   const SessionData current = MakeSession(Scene{false}, 0.3, 12, Pose3::Identity());
   DynamicDetectionConfig config;
+  config.low_residue_min_ground_points = 0;  // the extension alone (low residue: its own test)
   int low = 0;  // car points below the ground tolerance, too high for a ground partner
   for (std::size_t i = 0; i < history.submap.points.size(); ++i) {
     const double z = (HistoryFrame() * history.submap.points[i]).z();
@@ -276,6 +278,87 @@ TEST(DynamicDetectionTest, CarThatLeftIsRemovedDownToItsWheels) {
             0.8 * CountLabel(history.labels, kCar));
   EXPECT_LE(CountLabel(history.labels, with.history_dynamic, kCar, false), 3);
   EXPECT_LE(with.current_dynamic.size(), 3u);
+}
+
+// What the in-session filter leaves of a pedestrian's feet or a wheel: returns up to 0.22 m
+// above the ground, below the ground tolerance, where no ray can see through. The other
+// session measured the ground there and has nothing above it: the low residue rule takes
+// them. A low object of the same shape in both sessions has partners and stays, and so does a
+// long one (a curb the other session did not sample there).
+TEST(DynamicDetectionTest, LowResidueGoesWhereTheOtherSessionSawBareGround) {
+  DynamicDetectionConfig config;
+  // Points of `label` in the band, among `indices` of a session whose submap frame is T.
+  auto band = [&](const SessionData& s, const Pose3& T, const std::vector<std::uint32_t>& indices,
+                  int label) {
+    int n = 0;
+    for (std::uint32_t i : indices) {
+      const double z = (T * s.submap.points[i]).z();
+      n += s.labels[i] == label && z >= config.bottom_min_height_m && z < config.ground_tolerance_m;
+    }
+    return n;
+  };
+  auto everything = [](const SessionData& s) {
+    std::vector<std::uint32_t> all(s.submap.points.size());
+    std::iota(all.begin(), all.end(), 0u);
+    return all;
+  };
+  const Pose3 H = HistoryFrame();
+  const Box foot{{6.0, -0.1, 0.0}, {6.2, 0.1, 0.22}};
+  const SessionData history = MakeSession(Scene{true, foot}, 0.0, 61, H);
+  const SessionData current = MakeSession(Scene{false}, 0.3, 62, Pose3::Identity());
+  const int low = band(history, H, everything(history), kCar);
+  ASSERT_GE(low, 4);
+  config.low_residue_min_ground_points = 0;
+  const DynamicDetectionResult off = RunDetector(history, current, config);
+  config.low_residue_min_ground_points = 3;
+  const DynamicDetectionResult on = RunDetector(history, current, config);
+  std::printf("low residue: %d band points, %d taken with the rule, %d without; ground %d\n",
+              low, band(history, H, on.history_dynamic, kCar),
+              band(history, H, off.history_dynamic, kCar),
+              CountLabel(history.labels, on.history_dynamic, kGround, true));
+  EXPECT_EQ(band(history, H, off.history_dynamic, kCar), 0);
+  EXPECT_GE(band(history, H, on.history_dynamic, kCar), 0.75 * low);
+  EXPECT_LE(CountLabel(history.labels, on.history_dynamic, kCar, false),
+            CountLabel(history.labels, off.history_dynamic, kCar, false) + 2);
+  EXPECT_LE(on.current_dynamic.size(), off.current_dynamic.size() + 2);
+  // Out of the rule's range of the other session's path: left alone.
+  config.low_residue_range_m = 4.0;
+  const DynamicDetectionResult far = RunDetector(history, current, config);
+  EXPECT_EQ(band(history, H, far.history_dynamic, kCar), 0);
+  config.low_residue_range_m = DynamicDetectionConfig().low_residue_range_m;
+  // The same low object in both sessions: partners on both sides, nothing taken.
+  const SessionData both_now = MakeSession(Scene{true, foot}, 0.3, 63, Pose3::Identity());
+  const DynamicDetectionResult both = RunDetector(history, both_now, config);
+  EXPECT_LE(band(history, H, both.history_dynamic, kCar), 1);
+  EXPECT_LE(band(both_now, Pose3::Identity(), both.current_dynamic, kCar), 1);
+  // A thin post in both sessions: the other session saw the ground all around its foot and
+  // the post itself right above it, a partner.
+  const Box post{{6.0, -0.05, 0.0}, {6.1, 0.05, 2.0}};
+  const SessionData post_then = MakeSession(Scene{true, post}, 0.0, 65, H);
+  const SessionData post_now = MakeSession(Scene{false, post}, 0.3, 66, Pose3::Identity());
+  SessionData post_now_too = MakeSession(Scene{true, post}, 0.3, 66, Pose3::Identity());
+  const int post_band = band(post_then, H, everything(post_then), kCar);
+  ASSERT_GE(post_band, 2);
+  const DynamicDetectionResult post_gone = RunDetector(post_then, post_now, config);
+  const DynamicDetectionResult post_kept = RunDetector(post_then, post_now_too, config);
+  std::printf("post: %d band points, %d taken when it left, %d when it stayed\n", post_band,
+              band(post_then, H, post_gone.history_dynamic, kCar),
+              band(post_then, H, post_kept.history_dynamic, kCar));
+  EXPECT_EQ(band(post_then, H, post_kept.history_dynamic, kCar), 0);
+  EXPECT_EQ(band(post_now_too, Pose3::Identity(), post_kept.current_dynamic, kCar), 0);
+  // A long low object in the history alone: taken only without the blob limit.
+  const Box curb{{6.0, -1.5, 0.0}, {6.4, 1.5, 0.22}};
+  const SessionData long_low = MakeSession(Scene{true, curb}, 0.0, 64, H);
+  const int long_band = band(long_low, H, everything(long_low), kCar);
+  ASSERT_GE(long_band, 15);
+  const DynamicDetectionResult limited = RunDetector(long_low, current, config);
+  config.low_residue_max_own_neighbours = 0;
+  const DynamicDetectionResult unlimited = RunDetector(long_low, current, config);
+  std::printf("long low object: %d band points, %d taken with the blob limit, %d without\n",
+              long_band, band(long_low, H, limited.history_dynamic, kCar),
+              band(long_low, H, unlimited.history_dynamic, kCar));
+  EXPECT_LE(band(long_low, H, limited.history_dynamic, kCar), 0.1 * long_band);
+  EXPECT_GE(band(long_low, H, unlimited.history_dynamic, kCar), 0.75 * long_band);
 }
 
 // The two sessions' grounds are rarely at the same height: the alignment and the odometry's

@@ -489,6 +489,74 @@ class PairDetection {
                    std::back_inserter(*dynamic));
   }
 
+  // Step 6: the low residue of side s (DynamicDetectionConfig::low_residue_min_ground_points),
+  // merged into its sorted `dynamic` points.
+  void AddLowResidue(int s, std::vector<std::uint32_t>* dynamic) const {
+    const Side& side = sides_[s];
+    const int other = 1 - s;
+    const Side& theirs = sides_[other];
+    const float low = static_cast<float>(config_.bottom_min_height_m);
+    const float high = static_cast<float>(config_.ground_tolerance_m);
+    const double range_sq = config_.low_residue_range_m * config_.low_residue_range_m;
+    const double radius_sq = config_.low_residue_radius_m * config_.low_residue_radius_m;
+    const double partner_sq =
+        config_.low_residue_partner_distance_m * config_.low_residue_partner_distance_m;
+    // The other session's ground under the point lies at most ground_tolerance_m below it; a
+    // partner is above the ground, horizontally within the partner distance and at most
+    // kPartnerRise above the point (the rest of a trunk, a post or a wall whose foot the two
+    // sessions sampled at different places).
+    constexpr double kPartnerRise = 0.5;
+    // Their points at most this far below the point are at its level (partners); ground is
+    // lower (range noise of a ground voxel's returns is a few centimetres).
+    constexpr double kLevel = 0.05;
+    const double search = std::hypot(std::max(config_.low_residue_radius_m,
+                                              config_.low_residue_partner_distance_m),
+                                     std::max(config_.ground_tolerance_m, kPartnerRise));
+    std::vector<std::uint32_t> residue, neighbours;
+    for (std::size_t i = 0; i < side.points.size(); ++i) {
+      if (side.height_m[i] < low || side.height_m[i] >= high) continue;
+      if (std::binary_search(dynamic->begin(), dynamic->end(), static_cast<std::uint32_t>(i))) {
+        continue;
+      }
+      const Eigen::Vector3d& p = side.points[i];
+      if (!NearAny(theirs.origins, p, range_sq)) continue;
+      indices_[other]->Radius(p, search, &neighbours);
+      int ground = 0;
+      bool partner = false;
+      for (const std::uint32_t j : neighbours) {
+        const Eigen::Vector3d d = theirs.points[j] - p;
+        const double horizontal_sq = d.head<2>().squaredNorm();
+        // Above their ground, or at the point's own level (the sessions' ground estimates
+        // differ at a curb or a step: each session's ground cell may take the other level).
+        const bool level = d.z() >= -kLevel;
+        if (level || theirs.height_m[j] >= low) {
+          if (horizontal_sq <= partner_sq && d.z() <= kPartnerRise) {
+            partner = true;
+            break;
+          }
+        } else if (horizontal_sq <= radius_sq) {
+          ++ground;
+        }
+      }
+      if (partner || ground < config_.low_residue_min_ground_points) continue;
+      if (config_.low_residue_max_own_neighbours > 0) {
+        // A small blob (a foot, the bottom of a wheel), not a long low object (a curb).
+        indices_[s]->Radius(p, config_.low_residue_blob_radius_m, &neighbours);
+        int own = 0;
+        for (const std::uint32_t j : neighbours) {
+          own += side.height_m[j] >= low && side.height_m[j] < high;
+        }
+        if (own > config_.low_residue_max_own_neighbours) continue;
+      }
+      residue.push_back(static_cast<std::uint32_t>(i));
+    }
+    std::vector<std::uint32_t> merged;
+    merged.reserve(dynamic->size() + residue.size());
+    std::merge(dynamic->begin(), dynamic->end(), residue.begin(), residue.end(),
+               std::back_inserter(merged));
+    dynamic->swap(merged);
+  }
+
   // An examined object that is not changed and agrees with the other session on all but
   // changed_same_max_fraction of at least changed_min_compared compared points (rule on).
   bool IsSame(const DynamicDetectionResult::ExaminedObject& object) const {
@@ -497,7 +565,7 @@ class PairDetection {
            object.off_surface <= config_.changed_same_max_fraction * object.compared;
   }
 
-  // Step 6: current points missing from the history and not seen through by it.
+  // Step 7: current points missing from the history and not seen through by it.
   std::vector<std::uint32_t> Mending(const std::vector<std::uint32_t>& current_dynamic) const {
     const Side& side = sides_[kCurrent];
     std::vector<std::uint8_t> dynamic(side.points.size(), 0);
@@ -1072,6 +1140,16 @@ Status DynamicDetectionConfig::Validate() const {
         "dynamic_detection.changed_same_max_fraction must be >= 0 (0: off) and below "
         "changed_min_fraction");
   }
+  if (low_residue_min_ground_points < 0 || low_residue_max_own_neighbours < 0 ||
+      !(low_residue_radius_m > 0.0) || !std::isfinite(low_residue_radius_m) ||
+      !(low_residue_partner_distance_m >= 0.0) || !std::isfinite(low_residue_partner_distance_m) ||
+      !(low_residue_range_m > 0.0) || !std::isfinite(low_residue_range_m) ||
+      !(low_residue_blob_radius_m > 0.0) || !std::isfinite(low_residue_blob_radius_m)) {
+    return Status::Error(
+        "dynamic_detection: low_residue_min_ground_points and low_residue_max_own_neighbours "
+        "must be >= 0 (0: off / no limit), low_residue_partner_distance_m >= 0, "
+        "low_residue_radius_m, low_residue_range_m and low_residue_blob_radius_m > 0");
+  }
   if (changed_end_min_compared < 0 || !(changed_end_min_fraction > 0.0) ||
       !(changed_end_min_fraction <= 1.0) || !(changed_end_min_cos >= 0.0) ||
       !(changed_end_min_cos <= 1.0)) {
@@ -1226,6 +1304,11 @@ StatusOr<DynamicDetectionResult> DynamicDetector::Detect(const Submap& history,
     pair.ApplyExamined(kCurrent, result.examined_objects, &result.current_dynamic);
   }
   clock(&stage.changed_s);
+  if (config_.low_residue_min_ground_points > 0) {
+    pair.AddLowResidue(kHistory, &result.history_dynamic);
+    pair.AddLowResidue(kCurrent, &result.current_dynamic);
+  }
+  clock(&stage.dynamic_s);
   result.current_mending = pair.Mending(result.current_dynamic);
   clock(&stage.mending_s);
   result.time_s = SecondsSince(start);

@@ -167,6 +167,12 @@ namespace ros_params {
   F(low_dynamics_changed_end_min_compared, g.dynamics.changed_end_min_compared)               \
   F(low_dynamics_changed_end_min_fraction, g.dynamics.changed_end_min_fraction)               \
   F(low_dynamics_changed_same_max_fraction, g.dynamics.changed_same_max_fraction)             \
+  F(low_dynamics_low_residue_min_ground_points, g.dynamics.low_residue_min_ground_points)     \
+  F(low_dynamics_low_residue_radius_m, g.dynamics.low_residue_radius_m)                       \
+  F(low_dynamics_low_residue_partner_distance_m, g.dynamics.low_residue_partner_distance_m)   \
+  F(low_dynamics_low_residue_range_m, g.dynamics.low_residue_range_m)                         \
+  F(low_dynamics_low_residue_max_own_neighbours, g.dynamics.low_residue_max_own_neighbours)   \
+  F(low_dynamics_low_residue_blob_radius_m, g.dynamics.low_residue_blob_radius_m)             \
   F(map_update_fuse_min_overlap_ratio, g.fusion.min_overlap_ratio)                            \
   F(map_update_fuse_overlap_distance_m, g.fusion.overlap_distance_m)                          \
   F(map_update_fuse_voxel_m, g.fusion.voxel_m)                                                \

@@ -83,7 +83,10 @@ const char kUsage[] =
     "                     changed_min_compared, changed_min_fraction,\n"
     "                     changed_partner_min_fraction, changed_end_min_compared,\n"
     "                     changed_end_min_fraction, changed_end_min_cos,\n"
-    "                     changed_same_max_fraction)\n";
+    "                     changed_same_max_fraction, low_residue_min_ground_points,\n"
+    "                     low_residue_radius_m, low_residue_partner_distance_m,\n"
+    "                     low_residue_range_m, low_residue_max_own_neighbours,\n"
+    "                     low_residue_blob_radius_m)\n";
 
 constexpr int kCanopy = 6;
 constexpr int kParkedCar = 7;
@@ -458,6 +461,14 @@ int main(int argc, char** argv) {
       else if (key == "changed_min_fraction") config.changed_min_fraction = v;
       else if (key == "changed_partner_min_fraction") config.changed_partner_min_fraction = v;
       else if (key == "changed_same_max_fraction") config.changed_same_max_fraction = v;
+      else if (key == "low_residue_min_ground_points") {
+        config.low_residue_min_ground_points = static_cast<int>(v);
+      } else if (key == "low_residue_radius_m") config.low_residue_radius_m = v;
+      else if (key == "low_residue_partner_distance_m") config.low_residue_partner_distance_m = v;
+      else if (key == "low_residue_range_m") config.low_residue_range_m = v;
+      else if (key == "low_residue_max_own_neighbours") {
+        config.low_residue_max_own_neighbours = static_cast<int>(v);
+      } else if (key == "low_residue_blob_radius_m") config.low_residue_blob_radius_m = v;
       else {
         std::fprintf(stderr, "dynamic_detection_benchmark: unknown --set key %s\n", key.c_str());
         return 2;
