@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -336,7 +337,7 @@ TEST(DynamicDetectionTest, LowResidueGoesWhereTheOtherSessionSawBareGround) {
   const Box post{{6.0, -0.05, 0.0}, {6.1, 0.05, 2.0}};
   const SessionData post_then = MakeSession(Scene{true, post}, 0.0, 65, H);
   const SessionData post_now = MakeSession(Scene{false, post}, 0.3, 66, Pose3::Identity());
-  SessionData post_now_too = MakeSession(Scene{true, post}, 0.3, 66, Pose3::Identity());
+  const SessionData post_now_too = MakeSession(Scene{true, post}, 0.3, 66, Pose3::Identity());
   const int post_band = band(post_then, H, everything(post_then), kCar);
   ASSERT_GE(post_band, 2);
   const DynamicDetectionResult post_gone = RunDetector(post_then, post_now, config);
@@ -344,8 +345,29 @@ TEST(DynamicDetectionTest, LowResidueGoesWhereTheOtherSessionSawBareGround) {
   std::printf("post: %d band points, %d taken when it left, %d when it stayed\n", post_band,
               band(post_then, H, post_gone.history_dynamic, kCar),
               band(post_then, H, post_kept.history_dynamic, kCar));
+  EXPECT_EQ(band(post_then, H, post_gone.history_dynamic, kCar), post_band);
   EXPECT_EQ(band(post_then, H, post_kept.history_dynamic, kCar), 0);
   EXPECT_EQ(band(post_now_too, Pose3::Identity(), post_kept.current_dynamic, kCar), 0);
+  // The other session sampled only the post's upper part (from 0.3 m): still a partner.
+  const Box upper_post{{6.0, -0.05, 0.3}, {6.1, 0.05, 2.0}};
+  const SessionData upper_now = MakeSession(Scene{true, upper_post}, 0.3, 67, Pose3::Identity());
+  EXPECT_EQ(band(post_then, H, RunDetector(post_then, upper_now, config).history_dynamic, kCar),
+            0);
+  // Fewer ground points of the other session around the foot than the rule asks for: kept.
+  config.low_residue_min_ground_points = 50;
+  EXPECT_EQ(band(history, H, RunDetector(history, current, config).history_dynamic, kCar), 0);
+  config.low_residue_min_ground_points = DynamicDetectionConfig().low_residue_min_ground_points;
+  // The same for a foot in the current session, where the history saw bare ground (in the
+  // current frame the foot fills 8 voxels of the layer, one more than the blob limit: off).
+  const SessionData bare_then = MakeSession(Scene{false}, 0.0, 68, H);
+  const SessionData foot_now = MakeSession(Scene{true, foot}, 0.3, 69, Pose3::Identity());
+  const int low_now = band(foot_now, Pose3::Identity(), everything(foot_now), kCar);
+  ASSERT_GE(low_now, 3);
+  config.low_residue_max_own_neighbours = 0;
+  const DynamicDetectionResult now = RunDetector(bare_then, foot_now, config);
+  config.low_residue_max_own_neighbours = DynamicDetectionConfig().low_residue_max_own_neighbours;
+  EXPECT_GE(band(foot_now, Pose3::Identity(), now.current_dynamic, kCar), 0.75 * low_now);
+  EXPECT_EQ(now.history_dynamic.size(), 0u);
   // A long low object in the history alone: taken only without the blob limit.
   const Box curb{{6.0, -1.5, 0.0}, {6.4, 1.5, 0.22}};
   const SessionData long_low = MakeSession(Scene{true, curb}, 0.0, 64, H);
@@ -985,6 +1007,25 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   DynamicDetectionConfig config;
   config.voxel_size_m = 0.0;
   EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  // The low residue's settings (step 6).
+  const std::vector<std::function<void(DynamicDetectionConfig*)>> bad_low_residue = {
+      [](DynamicDetectionConfig* c) { c->low_residue_min_ground_points = -1; },
+      [](DynamicDetectionConfig* c) { c->low_residue_max_own_neighbours = -1; },
+      [](DynamicDetectionConfig* c) { c->low_residue_radius_m = 0.0; },
+      [](DynamicDetectionConfig* c) { c->low_residue_partner_distance_m = -0.1; },
+      [](DynamicDetectionConfig* c) { c->low_residue_range_m = std::nan(""); },
+      [](DynamicDetectionConfig* c) { c->low_residue_range_m = c->max_range_m + 1.0; },
+      [](DynamicDetectionConfig* c) { c->low_residue_blob_radius_m = 0.0; },
+  };
+  for (const auto& spoil : bad_low_residue) {
+    config = DynamicDetectionConfig();
+    spoil(&config);
+    EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  }
+  config = DynamicDetectionConfig();
+  config.low_residue_min_ground_points = 0;  // off
+  config.low_residue_max_own_neighbours = 0;  // no limit
+  EXPECT_TRUE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.seed_distance_m = std::nan("");
   EXPECT_FALSE(DynamicDetector::Create(config).ok());

@@ -501,10 +501,11 @@ class PairDetection {
     const double radius_sq = config_.low_residue_radius_m * config_.low_residue_radius_m;
     const double partner_sq =
         config_.low_residue_partner_distance_m * config_.low_residue_partner_distance_m;
-    // The other session's ground under the point lies at most ground_tolerance_m below it; a
-    // partner is above the ground, horizontally within the partner distance and at most
-    // kPartnerRise above the point (the rest of a trunk, a post or a wall whose foot the two
-    // sessions sampled at different places).
+    // A partner is above the ground or at the point's level, horizontally within the partner
+    // distance and at most kPartnerRise above the point (the rest of a trunk, a post or a
+    // wall whose foot the two sessions sampled at different places). The search reaches
+    // kPartnerRise up and down: the other session's ground lies about the point's height
+    // above its own ground below it, more where the two grounds differ (0.1-0.3 m).
     constexpr double kPartnerRise = 0.5;
     // Their points at most this far below the point are at its level (partners); ground is
     // lower (range noise of a ground voxel's returns is a few centimetres).
@@ -513,8 +514,11 @@ class PairDetection {
                                               config_.low_residue_partner_distance_m),
                                      std::max(config_.ground_tolerance_m, kPartnerRise));
     std::vector<std::uint32_t> residue, neighbours;
+    const auto in_layer = [&](std::size_t i) {
+      return side.height_m[i] >= low && side.height_m[i] < high;
+    };
     for (std::size_t i = 0; i < side.points.size(); ++i) {
-      if (side.height_m[i] < low || side.height_m[i] >= high) continue;
+      if (!in_layer(i)) continue;
       if (std::binary_search(dynamic->begin(), dynamic->end(), static_cast<std::uint32_t>(i))) {
         continue;
       }
@@ -543,9 +547,7 @@ class PairDetection {
         // A small blob (a foot, the bottom of a wheel), not a long low object (a curb).
         indices_[s]->Radius(p, config_.low_residue_blob_radius_m, &neighbours);
         int own = 0;
-        for (const std::uint32_t j : neighbours) {
-          own += side.height_m[j] >= low && side.height_m[j] < high;
-        }
+        for (const std::uint32_t j : neighbours) own += in_layer(j);
         if (own > config_.low_residue_max_own_neighbours) continue;
       }
       residue.push_back(static_cast<std::uint32_t>(i));
@@ -1143,12 +1145,13 @@ Status DynamicDetectionConfig::Validate() const {
   if (low_residue_min_ground_points < 0 || low_residue_max_own_neighbours < 0 ||
       !(low_residue_radius_m > 0.0) || !std::isfinite(low_residue_radius_m) ||
       !(low_residue_partner_distance_m >= 0.0) || !std::isfinite(low_residue_partner_distance_m) ||
-      !(low_residue_range_m > 0.0) || !std::isfinite(low_residue_range_m) ||
+      !(low_residue_range_m > 0.0) || !(low_residue_range_m <= max_range_m) ||
       !(low_residue_blob_radius_m > 0.0) || !std::isfinite(low_residue_blob_radius_m)) {
     return Status::Error(
         "dynamic_detection: low_residue_min_ground_points and low_residue_max_own_neighbours "
         "must be >= 0 (0: off / no limit), low_residue_partner_distance_m >= 0, "
-        "low_residue_radius_m, low_residue_range_m and low_residue_blob_radius_m > 0");
+        "low_residue_radius_m and low_residue_blob_radius_m > 0, low_residue_range_m in "
+        "(0, max_range_m]");
   }
   if (changed_end_min_compared < 0 || !(changed_end_min_fraction > 0.0) ||
       !(changed_end_min_fraction <= 1.0) || !(changed_end_min_cos >= 0.0) ||

@@ -64,8 +64,10 @@
 //  - Local ground: the lowest point per `ground_cell_m` cell, minimum over the 3x3 cell
 //    neighbourhood, of each submap for its own points (of both submaps where its own is more
 //    than `own_ground_max_gap_m` higher: its view of the ground was blocked). Points within
-//    `ground_tolerance_m` of it are ground: never dynamic (the ground under a removed car is
-//    seen by both sessions' rays at grazing angles) and no support.
+//    `ground_tolerance_m` of it are ground: never dynamic by the free-space detection (the
+//    ground under a removed car is seen by both sessions' rays at grazing angles; only the
+//    bottom extension and the low residue, step 6, take points from that layer above
+//    `bottom_min_height_m`) and no support.
 #pragma once
 
 #include <array>
@@ -293,17 +295,20 @@ struct DynamicDetectionConfig {
   /// points in all, but the DA is the target not met, so it is off. 0: off.
   double changed_same_max_fraction = 0.0;
   /// Low residue (an addition to the paper): the returns of feet and wheels just above the
-  /// ground (bottom_min_height_m to ground_tolerance_m above it) that the in-session filter
-  /// kept, since a beam through them lands on the ground right behind. Rays cannot see through
-  /// that layer, but the other session measured the ground there. A point of the layer is
-  /// dynamic when
-  ///  - the other session has at least `low_residue_min_ground_points` ground points within
-  ///    `low_residue_radius_m` horizontally, lower than the point by more than 0.05 m;
+  /// ground (bottom_min_height_m to ground_tolerance_m above it: the layer) that the
+  /// in-session filter kept, since a beam through them lands on the ground right behind. Rays
+  /// cannot see through that layer, but the other session measured the ground there. A point
+  /// of the layer is dynamic when
+  ///  - the other session has at least `low_residue_min_ground_points` ground points (below
+  ///    bottom_min_height_m above its ground, so with bottom_min_height_m 0 the rule finds
+  ///    no ground and takes nothing) within `low_residue_radius_m` horizontally, lower than
+  ///    the point by more than 0.05 m;
   ///  - it has no point within `low_residue_partner_distance_m` horizontally that stands above
   ///    its ground or at the point's own level, up to 0.5 m above the point (a curb, a low
   ///    wall, the foot of a trunk: in both sessions, though sampled at other places);
-  ///  - it lies within `low_residue_range_m` of the other session's scan origins (its beams
-  ///    reached the layer there: the rule's losses on curbs grow with the range);
+  ///  - it lies within `low_residue_range_m` (at most max_range_m) of the other session's
+  ///    scan origins as thinned by origin_spacing_m (its beams reached the layer there: the
+  ///    rule's losses on curbs grow with the range);
   ///  - at most `low_residue_max_own_neighbours` points of its own session's layer lie within
   ///    `low_residue_blob_radius_m` (a small blob, not a long curb that the other session saw
   ///    elsewhere or not at all; 0: no limit).
@@ -311,8 +316,11 @@ struct DynamicDetectionConfig {
   /// off -> on): low-dynamic DA 46.37 -> 46.80 / 55.67 -> 56.01 / 79.26 -> 79.90 %, moving-object
   /// leftovers removed 51 -> 86 of 681 / 27 -> 35 of 662 / 61 -> 79 of 784, static points lost
   /// +28 / +23 / +35 (curbs and parked cars; SA -0.002 to -0.003 points), the same time per pair.
-  /// With range 10 m or 10 own neighbours twice the static losses for ~10 % more. 0 ground
-  /// points: off.
+  /// With range 10 m or 10 own neighbours twice the static losses for ~10 % more. In the
+  /// merge, the propagation to copies (map_update.propagate_radius_m, 0.2 m) may also take the
+  /// ground right under a point this rule marks (not measured apart: seed 1's 3-session
+  /// pipeline, ~200 pairs, lost +305 terrain points with the rule). The in-session pair pass
+  /// (off by default) runs this step too, unmeasured. 0 ground points: off.
   int low_residue_min_ground_points = 3;
   double low_residue_radius_m = 0.2;
   double low_residue_partner_distance_m = 0.2;
@@ -362,8 +370,8 @@ struct DynamicDetectionResult {
   double time_s = 0.0;  ///< wall time of the whole detection [s]
   /// Wall time of each step [s] (their sum is time_s up to bookkeeping), for benchmarks:
   /// neighbour indices built here, ground grid, common parts (seeds and region growing),
-  /// voxel maps and ray casting, coarse dynamic points grown into objects (step 4),
-  /// changed objects (step 5), mending (step 6).
+  /// voxel maps and ray casting, coarse dynamic points grown into objects and the low residue
+  /// (steps 4 and 6, in `dynamic_s`), changed objects (step 5), mending (step 7).
   struct StageTimes {
     double index_s = 0.0;
     double ground_s = 0.0;
