@@ -317,10 +317,13 @@ struct DynamicDetectionConfig {
   /// leftovers removed 51 -> 86 of 681 / 27 -> 35 of 662 / 61 -> 79 of 784, static points lost
   /// +28 / +23 / +35 (curbs and parked cars; SA -0.002 to -0.003 points), the same time per pair.
   /// With range 10 m or 10 own neighbours twice the static losses for ~10 % more. In the
-  /// merge, the propagation to copies (map_update.propagate_radius_m, 0.2 m) may also take the
-  /// ground right under a point this rule marks (not measured apart: seed 1's 3-session
-  /// pipeline, ~200 pairs, lost +305 terrain points with the rule). The in-session pair pass
-  /// (off by default) runs this step too, unmeasured. 0 ground points: off.
+  /// merge, the propagation to copies (map_update.propagate_radius_m, 0.2 m) also takes the
+  /// other submaps' copies of what this rule marks: with no propagation from its points
+  /// (tried, session 70), the 3-session pipeline (seeds 1 / 2) removed 709 / 648 more
+  /// dynamic points than without the rule at +58 / -11 static points, with it 1,877 / 2,086
+  /// at +559 / +297 (terrain right under the marked points): kept, for the DA, the target not
+  /// met. The in-session pair pass (off by default) runs this step too, unmeasured. 0 ground
+  /// points: off.
   int low_residue_min_ground_points = 3;
   double low_residue_radius_m = 0.2;
   double low_residue_partner_distance_m = 0.2;
