@@ -410,7 +410,7 @@ TEST_F(SessionMergerTest, FusedGroundFillsTheHistorysGapsAtTheFineVoxel) {
     if (map.submaps[i].points.size() <= map_coarse_before.submaps[i].points.size()) continue;
     ++grown;
     Submap sorted = map.submaps[i];
-    SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config.fusion.voxel_m, &sorted);
+    SortSubmapPointsInVoxelBlocks(config.fusion.voxel_m, &sorted);
     EXPECT_EQ(sorted.points, map.submaps[i].points) << "submap " << i;
     ASSERT_EQ(sorted.views.size(), map.submaps[i].views.size());
     for (std::size_t k = 0; k < sorted.views.size(); ++k) {

@@ -608,7 +608,7 @@ TEST(SubmapBuilder, VoxelsAreTheCentroidsOfTheirPointsInZOrderWithTheirViews) {
     expected.views.push_back(views[{key.x(), key.y(), key.z()}].second);
     nearest_scans.insert(expected.views.back().nearest_scan);
   }
-  SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config.voxel_size_m, &expected);
+  SortSubmapPointsInVoxelBlocks(config.voxel_size_m, &expected);
   ASSERT_EQ(submaps[0].points.size(), first_hit.size());
   ASSERT_EQ(submaps[0].views.size(), first_hit.size());
   ASSERT_EQ(submaps[0].scans.size(), 60u);

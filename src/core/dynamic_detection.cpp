@@ -496,7 +496,6 @@ class PairDetection {
     const int other = 1 - s;
     const Side& theirs = sides_[other];
     const float low = static_cast<float>(config_.bottom_min_height_m);
-    const float high = static_cast<float>(config_.ground_tolerance_m);
     const double range_sq = config_.low_residue_range_m * config_.low_residue_range_m;
     const double radius_sq = config_.low_residue_radius_m * config_.low_residue_radius_m;
     const double partner_sq =
@@ -514,14 +513,9 @@ class PairDetection {
                                               config_.low_residue_partner_distance_m),
                                      std::max(config_.ground_tolerance_m, kPartnerRise));
     std::vector<std::uint32_t> residue, neighbours;
-    const auto in_layer = [&](std::size_t i) {
-      return side.height_m[i] >= low && side.height_m[i] < high;
-    };
-    for (std::size_t i = 0; i < side.points.size(); ++i) {
-      if (!in_layer(i)) continue;
-      if (std::binary_search(dynamic->begin(), dynamic->end(), static_cast<std::uint32_t>(i))) {
-        continue;
-      }
+    for (std::uint32_t i = 0; i < side.points.size(); ++i) {
+      if (!InBottomLayer(s, i)) continue;
+      if (std::binary_search(dynamic->begin(), dynamic->end(), i)) continue;
       const Eigen::Vector3d& p = side.points[i];
       if (!NearAny(theirs.origins, p, range_sq)) continue;
       indices_[other]->Radius(p, search, &neighbours);
@@ -547,10 +541,10 @@ class PairDetection {
         // A small blob (a foot, the bottom of a wheel), not a long low object (a curb).
         indices_[s]->Radius(p, config_.low_residue_blob_radius_m, &neighbours);
         int own = 0;
-        for (const std::uint32_t j : neighbours) own += in_layer(j);
+        for (const std::uint32_t j : neighbours) own += InBottomLayer(s, j);
         if (own > config_.low_residue_max_own_neighbours) continue;
       }
-      residue.push_back(static_cast<std::uint32_t>(i));
+      residue.push_back(i);
     }
     std::vector<std::uint32_t> merged;
     merged.reserve(dynamic->size() + residue.size());
@@ -594,11 +588,9 @@ class PairDetection {
     const Side& side = sides_[s];
     const double r = config_.bottom_extension_radius_m;
     const double search = std::hypot(r, config_.bottom_max_drop_m);
-    const float min_h = static_cast<float>(config_.bottom_min_height_m);
-    const float tol = static_cast<float>(config_.ground_tolerance_m);
     Spread(s, std::deque<std::uint32_t>(object.begin(), object.end()), search,
            [&](std::uint32_t i, std::uint32_t j) {
-             if ((*taken)[j] || side.height_m[j] < min_h || side.height_m[j] >= tol) return false;
+             if ((*taken)[j] || !InBottomLayer(s, j)) return false;
              // The other session has it too: ground beside the object.
              if (side.common[j]) return false;
              const Eigen::Vector3d d = side.points[i] - side.points[j];
@@ -610,6 +602,14 @@ class PairDetection {
              return true;
            },
            nullptr);
+  }
+
+  // Whether point i of side s lies in the layer right above the ground that rays cannot
+  // judge: from bottom_min_height_m up to ground_tolerance_m (wheels, feet; steps 4 and 6).
+  bool InBottomLayer(int s, std::uint32_t i) const {
+    const float h = sides_[s].height_m[i];
+    return h >= static_cast<float>(config_.bottom_min_height_m) &&
+           h < static_cast<float>(config_.ground_tolerance_m);
   }
 
   // Breadth-first spread over side s from the points in `queue` (already taken): each point

@@ -778,7 +778,7 @@ StatusOr<MergeReport> SessionMerger::Merge(const SessionResult& session,
     if (add != added_to_history.end()) {
       AppendSubmapPoints(add->second, &hs);
       // The added points in place (blocks of the fusion voxel, the submaps' by default).
-      SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config_.fusion.voxel_m, &hs);
+      SortSubmapPointsInVoxelBlocks(config_.fusion.voxel_m, &hs);
     }
     const auto md = mended_added.find(h);
     if (md != mended_added.end()) change.mended_m = md->second;

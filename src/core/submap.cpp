@@ -122,6 +122,10 @@ void SortSubmapPointsSpatially(double cell_m, Submap* submap) {
   }
 }
 
+void SortSubmapPointsInVoxelBlocks(double voxel_m, Submap* submap) {
+  SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * voxel_m, submap);
+}
+
 void AppendSubmapPoints(const PointVector& points, Submap* submap) {
   const bool has_views = submap->views.size() == submap->points.size();
   submap->points.insert(submap->points.end(), points.begin(), points.end());

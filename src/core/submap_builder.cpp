@@ -434,7 +434,7 @@ void SubmapBuilder::Finalize(OpenSubmap* open) {
     submap.views.push_back(open->voxels[i].views);
     ++stats_.voxels_kept;
   }
-  SortSubmapPointsSpatially(kSpatialOrderBlockVoxels * config_.voxel_size_m, &submap);
+  SortSubmapPointsInVoxelBlocks(config_.voxel_size_m, &submap);
   open->voxels = {};
   open->heights = {};
   open->centroid_x = {};
