@@ -799,10 +799,12 @@ struct LowWallPair {
   std::vector<int> history_labels, current_labels;  // kGround / kWall
 };
 
-LowWallPair MakeLowWallPair(double half_length_m) {
+// lift_m raises the wall off the ground, and the ground ends ground_gap_m before it.
+LowWallPair MakeLowWallPair(double half_length_m, double lift_m = 0.0,
+                            double ground_gap_m = 0.2) {
   LowWallPair pair;
   const auto make = [&](double wall_x, Submap* submap, std::vector<int>* labels) {
-    for (double x = -2.0; x <= wall_x - 0.2 + 1e-9; x += 0.2) {
+    for (double x = -2.0; x <= wall_x - ground_gap_m + 1e-9; x += 0.2) {
       for (double y = -16.0; y <= 16.0 + 1e-9; y += 0.2) {
         submap->points.emplace_back(x, y, 0.0);
         labels->push_back(kGround);
@@ -810,7 +812,7 @@ LowWallPair MakeLowWallPair(double half_length_m) {
     }
     for (double y = -half_length_m; y <= half_length_m + 1e-9; y += 0.2) {
       for (double z = 0.2; z <= 1.4 + 1e-9; z += 0.2) {
-        submap->points.emplace_back(wall_x, y, z);
+        submap->points.emplace_back(wall_x, y, z + lift_m);
         labels->push_back(kWall);
       }
     }
@@ -864,6 +866,55 @@ TEST(DynamicDetectionTest, LongLowWallCutByTheCompareRangeIsNoChangedObject) {
             0.5 * CountLabel(short_wall.history_labels, kWall));
   EXPECT_GT(CountLabel(short_wall.current_labels, result.value().current_dynamic, kWall, true),
             0);
+}
+
+// Seen from afar, the lower part of a tree crown can have no measured ground under it: its own
+// lowest points are then its local ground and a fragment of the crown passes for a car-sized
+// object standing on the ground, which the crowns' day-to-day scatter makes changed. Here the
+// short wall of the control above, lifted 2.5 m, with the ground ending 2 m before it, in the
+// far band (max_range_m 8 m, the wall 10 m away): with far_ground_cell_m off it is examined
+// and changed; with the rule on it is not examined, while the same wall on the ground still
+// is and is changed, and so is the lifted wall in the near band (the rule is the far band's).
+TEST(DynamicDetectionTest, FarObjectAboveTheGroundAroundItIsNoChangedObject) {
+  const auto examined_wall = [](const LowWallPair& pair, const DynamicDetectionConfig& config,
+                                bool* changed) {
+    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
+    EXPECT_TRUE(detector.ok()) << detector.status().message();
+    StatusOr<DynamicDetectionResult> result =
+        detector.value().Detect(pair.history, pair.current, Pose3::Identity());
+    EXPECT_TRUE(result.ok()) << result.status().message();
+    int points = 0;
+    *changed = false;
+    for (const auto& object : result.value().examined_objects) {
+      const auto& labels = object.side == 0 ? pair.history_labels : pair.current_labels;
+      const int wall = CountLabel(labels, object.points, kWall, true);
+      points += wall;
+      *changed = *changed || (wall > 0 && object.changed);
+    }
+    return points;
+  };
+  DynamicDetectionConfig near;
+  near.far_ground_cell_m = 2.0;
+  near.far_max_bottom_m = 1.2;
+  DynamicDetectionConfig on = near;
+  on.max_range_m = 8.0;
+  DynamicDetectionConfig off = on;
+  off.far_ground_cell_m = 0.0;
+  const LowWallPair lifted = MakeLowWallPair(2.0, 2.5, 2.0);
+  const LowWallPair standing = MakeLowWallPair(2.0, 0.0, 2.0);
+  bool changed = false;
+  EXPECT_GT(examined_wall(lifted, off, &changed), 0);
+  EXPECT_TRUE(changed) << "the lifted wall must be a changed object without the rule";
+  EXPECT_EQ(examined_wall(lifted, on, &changed), 0);
+  EXPECT_GT(examined_wall(lifted, near, &changed), 0);
+  EXPECT_TRUE(changed);
+  EXPECT_GT(examined_wall(standing, on, &changed), 0);
+  EXPECT_TRUE(changed);
+  // The bound, on the object's lowest point out of the ground tolerance of its own local
+  // ground (the wall's third row, 0.4 m above its lowest): lifted 0.5 m, that point is 1.1 m
+  // above the ground around it and the wall is examined; lifted 0.7 m, 1.3 m, it is not.
+  EXPECT_GT(examined_wall(MakeLowWallPair(2.0, 0.5, 2.0), on, &changed), 0);
+  EXPECT_EQ(examined_wall(MakeLowWallPair(2.0, 0.7, 2.0), on, &changed), 0);
 }
 
 // A truck that left: its side (0.4-3.2 m high, facing the road) was seen through by the other
@@ -952,6 +1003,60 @@ TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
   EXPECT_GE(low, 0.9 * kPatchPoints);
 }
 
+// The far band's ground around an object, for the free-space detection: a 2 x 0.8 m patch
+// floating 2.6 m up, 8 m away in the far band (max_range_m 6 m), with the ground measured only
+// up to 6 m (its local ground is its own lowest points, as under a crown seen from afar). The
+// current session sees the wall behind it through it. Without the rule the patch is a far
+// detection of a movable object's shape; with it, it is not; the same patch 0.4 m up still
+// is (the ground around it is the street's).
+TEST(DynamicDetectionTest, FarPatchAboveTheGroundAroundItIsNotDynamic) {
+  const auto patch_found = [](double bottom_m, const DynamicDetectionConfig& config) {
+    const auto street = [](PointVector* out) {
+      for (double x = -2.0; x <= 6.0 + 1e-9; x += 0.2) {
+        for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
+      }
+      for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
+        for (double z = 0.2; z <= 4.0 + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
+      }
+    };
+    Submap history, current;
+    street(&history.points);
+    const std::size_t patch_begin = history.points.size();
+    for (double y = -1.0; y <= 1.0 + 1e-9; y += 0.2) {
+      for (double z = bottom_m; z <= bottom_m + 0.8 + 1e-9; z += 0.2) {
+        history.points.emplace_back(8.0, y, z);
+      }
+    }
+    AddOriginsAlongY(3.0, &history);
+    street(&current.points);
+    AddOriginsAlongY(3.0, &current);
+    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
+    EXPECT_TRUE(detector.ok()) << detector.status().message();
+    StatusOr<DynamicDetectionResult> result =
+        detector.value().Detect(history, current, Pose3::Identity());
+    EXPECT_TRUE(result.ok()) << result.status().message();
+    int patch = 0;
+    for (std::uint32_t i : result.value().history_dynamic) patch += i >= patch_begin;
+    return patch;
+  };
+  DynamicDetectionConfig on;
+  on.max_range_m = 6.0;
+  on.low_residue_range_m = 5.0;
+  on.far_ground_cell_m = 2.0;
+  on.far_max_bottom_m = 1.2;
+  DynamicDetectionConfig off = on;
+  off.far_ground_cell_m = 0.0;
+  const int floating_off = patch_found(2.6, off), floating_on = patch_found(2.6, on);
+  const int standing_on = patch_found(0.4, on);
+  std::printf("far patch of 55 points: floating %d found without the rule, %d with it; 0.4 m "
+              "up %d with it\n", floating_off, floating_on, standing_on);
+  // At least 4 of the patch's 5 rows of 11 points (its lowest row floating is ground to its
+  // own local ground).
+  EXPECT_GE(floating_off, 44);  // the scene does exercise the far floating case
+  EXPECT_EQ(floating_on, 0);
+  EXPECT_GE(standing_on, 44);
+}
+
 // Step 2 grows the common parts over whole surfaces: a wall that the history saw only in
 // part (y <= 0) and the current session saw to y = 2.9 m is one surface, so the current's rest
 // of it joins the common part through the chain of compatible neighbours, also where no
@@ -1025,6 +1130,18 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   config = DynamicDetectionConfig();
   config.low_residue_min_ground_points = 0;  // off
   config.low_residue_max_own_neighbours = 0;  // no limit
+  EXPECT_TRUE(DynamicDetector::Create(config).ok());
+  // The changed objects' ground around them.
+  for (const double bad_cell : {-1.0, std::nan(""), HUGE_VAL}) {
+    config = DynamicDetectionConfig();
+    config.far_ground_cell_m = bad_cell;
+    EXPECT_FALSE(DynamicDetector::Create(config).ok()) << bad_cell;
+  }
+  config = DynamicDetectionConfig();
+  config.far_max_bottom_m = 0.0;
+  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  config.far_max_bottom_m = 1.2;
+  config.far_ground_cell_m = 0.0;  // off
   EXPECT_TRUE(DynamicDetector::Create(config).ok());
   config = DynamicDetectionConfig();
   config.seed_distance_m = std::nan("");

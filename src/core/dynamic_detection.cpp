@@ -376,7 +376,8 @@ class PairDetection {
           coarse >= config_.min_cluster_coarse_points &&
           coarse >= config_.min_cluster_coarse_fraction * static_cast<double>(cluster.size()) &&
           grounded &&
-          (!TouchesFarBand(side, cluster) || WholeObjectIsMovable(s, cluster))) {
+          (!TouchesFarBand(side, cluster) ||
+           (StandsOnWideGround(s, cluster) && WholeObjectIsMovable(s, cluster)))) {
         dynamic.insert(dynamic.end(), cluster.begin(), cluster.end());
         if (config_.bottom_extension_radius_m > 0.0) ExtendDown(s, cluster, &visited, &dynamic);
       }
@@ -414,7 +415,11 @@ class PairDetection {
       if (static_cast<int>(cluster.size()) < config_.changed_min_points) continue;
       // The shape of the whole object, not of its cut by the compare range: a wall or hedge
       // that leaves the range would pass for a car-sized object.
-      if (!MovableShape(s, cluster) || !WholeObjectIsMovable(s, cluster)) continue;
+      if (!MovableShape(s, cluster) ||
+          (TouchesFarBand(side, cluster) && !StandsOnWideGround(s, cluster)) ||
+          !WholeObjectIsMovable(s, cluster)) {
+        continue;
+      }
       DynamicDetectionResult::ExaminedObject object;
       object.side = s;
       object.points = cluster;
@@ -689,6 +694,24 @@ class PairDetection {
            nullptr, [&] { return too_large; });
     for (std::uint32_t i : object) taken[i] = 0;
     return !too_large && MovableShape(s, object);
+  }
+
+  // The far band's ground around an object: its lowest point is at most far_max_bottom_m
+  // above the lowest point of both submaps around it (far_ground_cell_m; always true when
+  // that is 0).
+  bool StandsOnWideGround(int s, const std::vector<std::uint32_t>& cluster) {
+    if (config_.far_ground_cell_m <= 0.0) return true;
+    if (!wide_ground_) {
+      wide_ground_ = std::make_unique<GroundGrid>(
+          std::initializer_list<const Side*>{&sides_[0], &sides_[1]},
+          config_.far_ground_cell_m);
+    }
+    const Side& side = sides_[s];
+    std::uint32_t lowest = cluster.front();
+    for (std::uint32_t i : cluster) {
+      if (side.points[i].z() < side.points[lowest].z()) lowest = i;
+    }
+    return wide_ground_->HeightAbove(side.points[lowest]) <= config_.far_max_bottom_m;
   }
 
   // An object of movable size standing on the ground with mostly planar surfaces.
@@ -1013,6 +1036,7 @@ class PairDetection {
   };
   VoxelMap<VoxelPlane> voxel_planes_[2];
   std::vector<std::uint8_t> object_mark_[2];  // scratch marks of WholeObjectIsMovable
+  std::unique_ptr<GroundGrid> wide_ground_;  // StandsOnWideGround's, built on first use
   // Per side: normal of the planar point that queried a voxel (min_pass_incidence_rad).
   std::unordered_map<const RayVoxelGrid::Cell*, Eigen::Vector3f> pass_normals_[2];
   float min_pass_sin_ = 0.0f;
@@ -1064,10 +1088,15 @@ Status DynamicDetectionConfig::Validate() const {
         {"changed_grow_radius_m", changed_grow_radius_m},
         {"changed_max_extent_m", changed_max_extent_m},
         {"changed_max_bottom_m", changed_max_bottom_m},
+        {"far_max_bottom_m", far_max_bottom_m},
         {"changed_neighbour_radius_m", changed_neighbour_radius_m},
         {"changed_surface_distance_m", changed_surface_distance_m}}) {
     const Status status = CheckPositive(name, value);
     if (!status.ok()) return status;
+  }
+  if (!(far_ground_cell_m >= 0.0) || !std::isfinite(far_ground_cell_m)) {
+    return Status::Error(
+        "dynamic_detection.far_ground_cell_m must be >= 0 (0: off) and finite");
   }
   if (!(min_cluster_coarse_fraction >= 0.0 && min_cluster_coarse_fraction <= 1.0)) {
     return Status::Error("dynamic_detection.min_cluster_coarse_fraction must be in [0, 1]");

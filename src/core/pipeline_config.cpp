@@ -202,6 +202,8 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"low_dynamics", "max_object_bottom_m", &m.dynamics.max_object_bottom_m},
       {"low_dynamics", "max_range_m", &m.dynamics.max_range_m},
       {"low_dynamics", "far_range_m", &m.dynamics.far_range_m},
+      {"low_dynamics", "far_ground_cell_m", &m.dynamics.far_ground_cell_m},
+      {"low_dynamics", "far_max_bottom_m", &m.dynamics.far_max_bottom_m},
       {"low_dynamics", "min_passing_rays", &m.dynamics.min_passing_rays},
       {"low_dynamics", "min_cluster_points", &m.dynamics.min_cluster_points},
       {"low_dynamics", "ground_tolerance_m", &m.dynamics.ground_tolerance_m},

@@ -156,6 +156,8 @@ namespace ros_params {
   F(low_dynamics_height_guard_m, g.dynamics.height_guard_m)                                   \
   F(low_dynamics_max_object_bottom_m, g.dynamics.max_object_bottom_m)                         \
   F(low_dynamics_far_range_m, g.dynamics.far_range_m)                                         \
+  F(low_dynamics_far_ground_cell_m, g.dynamics.far_ground_cell_m)                             \
+  F(low_dynamics_far_max_bottom_m, g.dynamics.far_max_bottom_m)                               \
   F(low_dynamics_bottom_extension_radius_m, g.dynamics.bottom_extension_radius_m)             \
   F(low_dynamics_bottom_min_height_m, g.dynamics.bottom_min_height_m)                         \
   F(low_dynamics_bottom_max_drop_m, g.dynamics.bottom_max_drop_m)                             \

@@ -78,7 +78,8 @@ const char kUsage[] =
     "                     ground_tolerance_m, ground_cell_m, own_ground_max_gap_m,\n"
     "                     changed_objects_enabled (0/1), changed_compare_range_m,\n"
     "                     changed_grow_radius_m, changed_min_points, changed_max_extent_m,\n"
-    "                     changed_max_bottom_m, changed_min_planar_fraction,\n"
+    "                     changed_max_bottom_m, far_ground_cell_m,\n"
+    "                     far_max_bottom_m, changed_min_planar_fraction,\n"
     "                     changed_neighbour_radius_m, changed_surface_distance_m,\n"
     "                     changed_min_compared, changed_min_fraction,\n"
     "                     changed_partner_min_fraction, changed_end_min_compared,\n"
@@ -454,6 +455,8 @@ int main(int argc, char** argv) {
       else if (key == "changed_min_points") config.changed_min_points = static_cast<int>(v);
       else if (key == "changed_max_extent_m") config.changed_max_extent_m = v;
       else if (key == "changed_max_bottom_m") config.changed_max_bottom_m = v;
+      else if (key == "far_ground_cell_m") config.far_ground_cell_m = v;
+      else if (key == "far_max_bottom_m") config.far_max_bottom_m = v;
       else if (key == "changed_min_planar_fraction") config.changed_min_planar_fraction = v;
       else if (key == "changed_neighbour_radius_m") config.changed_neighbour_radius_m = v;
       else if (key == "changed_surface_distance_m") config.changed_surface_distance_m = v;

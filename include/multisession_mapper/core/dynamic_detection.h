@@ -131,6 +131,18 @@ struct DynamicDetectionConfig {
   /// 99.758 / 99.757 / 99.711 %; seed 2 (not tuned on) 36.6 / 40.9 / 43.0 %, 99.827 / 99.804
   /// / 99.745 %. 0 (or <= max_range_m): off.
   double far_range_m = 40.0;
+  /// Far band, ground around: an object holding far-band points (a detection, or an object
+  /// the changed-object step examines when changed_compare_range_m exceeds max_range_m) must
+  /// also stand on the ground of its surroundings: its lowest point out of ground_tolerance_m
+  /// of its local ground at most far_max_bottom_m [m] above the lowest point of both submaps
+  /// in the 3 x 3 cells of edge far_ground_cell_m [m] around it (0: off). Under a tree crown
+  /// seen from afar, whose trunk and ground nobody measured, the local ground (ground_cell_m)
+  /// is the crown's own lowest points, and a fragment of the lower crown passed for a
+  /// car-sized object standing on the ground, which the crowns' day-to-day scatter made
+  /// dynamic or changed. Session 71, 3-session `campus` pipeline (map fit) against session 70,
+  /// seeds 1 / 2: see docs/status_details.md.
+  double far_ground_cell_m = 2.0;
+  double far_max_bottom_m = 1.2;
   /// Free space ends this far before a ray's end point [m]; for end points on the ground it is
   /// end_margin_m / sin(ray elevation), at most max_end_margin_m [m].
   double end_margin_m = 0.3;
