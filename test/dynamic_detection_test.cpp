@@ -870,8 +870,8 @@ TEST(DynamicDetectionTest, LongLowWallCutByTheCompareRangeIsNoChangedObject) {
 
 // Seen from afar, the lower part of a tree crown can have no measured ground under it: its own
 // lowest points are then its local ground and a fragment of the crown passes for a car-sized
-// object standing on the ground, which the crowns' day-to-day scatter makes changed. Here the
-// short wall of the control above, lifted 2.5 m, with the ground ending 2 m before it, in the
+// object standing on the ground, which the crowns' day-to-day scatter makes changed. Here a
+// 4 m wall like the control above, lifted 2.5 m, with the ground ending 2 m before it, in the
 // far band (max_range_m 8 m, the wall 10 m away): with far_ground_cell_m off it is examined
 // and changed; with the rule on it is not examined, while the same wall on the ground still
 // is and is changed, and so is the lifted wall in the near band (the rule is the far band's).
@@ -1005,14 +1005,14 @@ TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
 
 // The far band's ground around an object, for the free-space detection: a 2 x 0.8 m patch
 // floating 2.6 m up, 8 m away in the far band (max_range_m 6 m), with the ground measured only
-// up to 6 m (its local ground is its own lowest points, as under a crown seen from afar). The
+// up to 6.8 m (its local ground is its own lowest points, as under a crown seen from afar). The
 // current session sees the wall behind it through it. Without the rule the patch is a far
 // detection of a movable object's shape; with it, it is not; the same patch 0.4 m up still
 // is (the ground around it is the street's).
 TEST(DynamicDetectionTest, FarPatchAboveTheGroundAroundItIsNotDynamic) {
   const auto patch_found = [](double bottom_m, const DynamicDetectionConfig& config) {
     const auto street = [](PointVector* out) {
-      for (double x = -2.0; x <= 6.0 + 1e-9; x += 0.2) {
+      for (double x = -2.0; x <= 6.8 + 1e-9; x += 0.2) {
         for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
       }
       for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
@@ -1131,15 +1131,17 @@ TEST(DynamicDetectionTest, RejectsInvalidConfigsAndMissingOrigins) {
   config.low_residue_min_ground_points = 0;  // off
   config.low_residue_max_own_neighbours = 0;  // no limit
   EXPECT_TRUE(DynamicDetector::Create(config).ok());
-  // The changed objects' ground around them.
-  for (const double bad_cell : {-1.0, std::nan(""), HUGE_VAL}) {
+  // The far band's ground around an object.
+  for (const double bad_cell : {-1.0, 0.1, std::nan(""), HUGE_VAL}) {
     config = DynamicDetectionConfig();
     config.far_ground_cell_m = bad_cell;
     EXPECT_FALSE(DynamicDetector::Create(config).ok()) << bad_cell;
   }
   config = DynamicDetectionConfig();
-  config.far_max_bottom_m = 0.0;
-  EXPECT_FALSE(DynamicDetector::Create(config).ok());
+  for (const double bad_bottom : {0.0, std::nan(""), HUGE_VAL}) {
+    config.far_max_bottom_m = bad_bottom;
+    EXPECT_FALSE(DynamicDetector::Create(config).ok()) << bad_bottom;
+  }
   config.far_max_bottom_m = 1.2;
   config.far_ground_cell_m = 0.0;  // off
   EXPECT_TRUE(DynamicDetector::Create(config).ok());

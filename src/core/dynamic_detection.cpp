@@ -1094,9 +1094,11 @@ Status DynamicDetectionConfig::Validate() const {
     const Status status = CheckPositive(name, value);
     if (!status.ok()) return status;
   }
-  if (!(far_ground_cell_m >= 0.0) || !std::isfinite(far_ground_cell_m)) {
+  // A cell below the local ground's would not be a wider ground (and a tiny one a huge grid).
+  if (!std::isfinite(far_ground_cell_m) ||
+      !(far_ground_cell_m == 0.0 || far_ground_cell_m >= ground_cell_m)) {
     return Status::Error(
-        "dynamic_detection.far_ground_cell_m must be >= 0 (0: off) and finite");
+        "dynamic_detection.far_ground_cell_m must be 0 (off) or at least ground_cell_m");
   }
   if (!(min_cluster_coarse_fraction >= 0.0 && min_cluster_coarse_fraction <= 1.0)) {
     return Status::Error("dynamic_detection.min_cluster_coarse_fraction must be in [0, 1]");

@@ -135,7 +135,8 @@ struct DynamicDetectionConfig {
   /// the changed-object step examines when changed_compare_range_m exceeds max_range_m) must
   /// also stand on the ground of its surroundings: its lowest point out of ground_tolerance_m
   /// of its local ground at most far_max_bottom_m [m] above the lowest point of both submaps
-  /// in the 3 x 3 cells of edge far_ground_cell_m [m] around it (0: off). Under a tree crown
+  /// in the 3 x 3 cells of edge far_ground_cell_m [m] around it (0: off; else at least
+  /// ground_cell_m). Under a tree crown
   /// seen from afar, whose trunk and ground nobody measured, the local ground (ground_cell_m)
   /// is the crown's own lowest points, and a fragment of the lower crown passed for a
   /// car-sized object standing on the ground, which the crowns' day-to-day scatter made
