@@ -136,11 +136,10 @@ struct DynamicDetectionConfig {
   /// also stand on the ground of its surroundings: its lowest point out of ground_tolerance_m
   /// of its local ground at most far_max_bottom_m [m] above the lowest point of both submaps
   /// in the 3 x 3 cells of edge far_ground_cell_m [m] around it (0: off; else at least
-  /// ground_cell_m). Under a tree crown
-  /// seen from afar, whose trunk and ground nobody measured, the local ground (ground_cell_m)
-  /// is the crown's own lowest points, and a fragment of the lower crown passed for a
-  /// car-sized object standing on the ground, which the crowns' day-to-day scatter made
-  /// dynamic or changed. Session 71, 3-session `campus` pipeline (map fit), seeds 1 / 2 / 3,
+  /// ground_cell_m). Under a tree crown seen from afar, whose trunk and ground nobody
+  /// measured, the local ground (ground_cell_m) is the crown's own lowest points, and a
+  /// fragment of the lower crown passed for a car-sized object standing on the ground, which
+  /// the crowns' day-to-day scatter made dynamic or changed. Session 71, 3-session `campus` pipeline (map fit), seeds 1 / 2 / 3,
   /// off -> on: static points lost 115,279 -> 112,003 / 109,264 -> 106,020 / 128,864 ->
   /// 124,449 (canopy SA 99.625 -> 99.658 / 99.572 -> 99.601 / 99.552 -> 99.593 %), low-dynamic
   /// points removed -247 / +62 / -12; with far_max_bottom_m 1.2: -715 / -9 / -612 for about
