@@ -724,10 +724,10 @@ void AddOriginsAlongY(double z, Submap* submap) {
   }
 }
 
-// A hand-made street: ground at z = 0 up to x = 11.8 and a wall at x = 12 from 0.2 m up to
-// wall_top_m, every 0.2 m.
-void AddStreet(double wall_top_m, PointVector* out) {
-  for (double x = -2.0; x <= 11.8 + 1e-9; x += 0.2) {
+// A hand-made street: ground at z = 0 up to x = ground_end_m and a wall at x = 12 from 0.2 m
+// up to wall_top_m, every 0.2 m.
+void AddStreet(double wall_top_m, PointVector* out, double ground_end_m = 11.8) {
+  for (double x = -2.0; x <= ground_end_m + 1e-9; x += 0.2) {
     for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
   }
   for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
@@ -964,27 +964,42 @@ TEST(DynamicDetectionTest, TallObjectIsRemovedAboveTheGuardUpToTheObjectHeight) 
 // objects stand on the ground. Hand-made submaps: the history saw a 2 x 2 m patch at
 // 2.6-3.4 m with nothing below it, the current session saw the tall wall behind it through
 // that space. The same patch at car height (0.4-1.2 m) is a removed object.
+// A floating patch: the history saw the street (AddStreet with a 4 m wall, its ground up to
+// ground_end_m) and a 2 x 0.8 m patch at x = 8 m from bottom_m up; the current session saw the
+// street alone, its wall through the patch's place; both from sensors 3 m up. Returns the
+// history's dynamic points; *patch_begin is the index of the patch's first point.
+std::vector<std::uint32_t> FloatingPatchDynamic(double bottom_m, double ground_end_m,
+                                                const DynamicDetectionConfig& config,
+                                                std::size_t* patch_begin) {
+  Submap history, current;
+  AddStreet(4.0, &history.points, ground_end_m);
+  *patch_begin = history.points.size();
+  for (double y = -1.0; y <= 1.0 + 1e-9; y += 0.2) {
+    for (double z = bottom_m; z <= bottom_m + 0.8 + 1e-9; z += 0.2) {
+      history.points.emplace_back(8.0, y, z);
+    }
+  }
+  AddOriginsAlongY(3.0, &history);
+  AddStreet(4.0, &current.points, ground_end_m);
+  AddOriginsAlongY(3.0, &current);
+  StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
+  EXPECT_TRUE(detector.ok()) << detector.status().message();
+  if (!detector.ok()) return {};
+  StatusOr<DynamicDetectionResult> result =
+      detector.value().Detect(history, current, Pose3::Identity());
+  EXPECT_TRUE(result.ok()) << result.status().message();
+  if (!result.ok()) return {};
+  return result.value().history_dynamic;
+}
+
 TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
   // Patch points of the history found dynamic (anything else found fails the test).
   auto patch_found = [&](double bottom_m, const DynamicDetectionConfig& config, int* patch) {
-    Submap history, current;
-    AddStreet(4.0, &history.points);  // a 4 m wall: the current session sees it through
-    const std::size_t patch_begin = history.points.size();
-    for (double y = -1.0; y <= 1.0 + 1e-9; y += 0.2) {
-      for (double z = bottom_m; z <= bottom_m + 0.8 + 1e-9; z += 0.2) {
-        history.points.emplace_back(8.0, y, z);
-      }
-    }
-    AddOriginsAlongY(3.0, &history);
-    AddStreet(4.0, &current.points);
-    AddOriginsAlongY(3.0, &current);
-    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
-    ASSERT_TRUE(detector.ok());
-    StatusOr<DynamicDetectionResult> result =
-        detector.value().Detect(history, current, Pose3::Identity());
-    ASSERT_TRUE(result.ok());
-    for (std::uint32_t i : result.value().history_dynamic) ASSERT_GE(i, patch_begin);
-    *patch = static_cast<int>(result.value().history_dynamic.size());
+    std::size_t patch_begin = 0;
+    const std::vector<std::uint32_t> dynamic =
+        FloatingPatchDynamic(bottom_m, 11.8, config, &patch_begin);
+    for (std::uint32_t i : dynamic) ASSERT_GE(i, patch_begin);
+    *patch = static_cast<int>(dynamic.size());
   };
   constexpr int kPatchPoints = 11 * 5;
   DynamicDetectionConfig config;
@@ -1011,32 +1026,11 @@ TEST(DynamicDetectionTest, FloatingObjectIsNotDynamicWithoutTheHeightGuard) {
 // is (the ground around it is the street's).
 TEST(DynamicDetectionTest, FarPatchAboveTheGroundAroundItIsNotDynamic) {
   const auto patch_found = [](double bottom_m, const DynamicDetectionConfig& config) {
-    const auto street = [](PointVector* out) {
-      for (double x = -2.0; x <= 6.8 + 1e-9; x += 0.2) {
-        for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) out->emplace_back(x, y, 0.0);
-      }
-      for (double y = -6.0; y <= 6.0 + 1e-9; y += 0.2) {
-        for (double z = 0.2; z <= 4.0 + 1e-9; z += 0.2) out->emplace_back(12.0, y, z);
-      }
-    };
-    Submap history, current;
-    street(&history.points);
-    const std::size_t patch_begin = history.points.size();
-    for (double y = -1.0; y <= 1.0 + 1e-9; y += 0.2) {
-      for (double z = bottom_m; z <= bottom_m + 0.8 + 1e-9; z += 0.2) {
-        history.points.emplace_back(8.0, y, z);
-      }
-    }
-    AddOriginsAlongY(3.0, &history);
-    street(&current.points);
-    AddOriginsAlongY(3.0, &current);
-    StatusOr<DynamicDetector> detector = DynamicDetector::Create(config);
-    EXPECT_TRUE(detector.ok()) << detector.status().message();
-    StatusOr<DynamicDetectionResult> result =
-        detector.value().Detect(history, current, Pose3::Identity());
-    EXPECT_TRUE(result.ok()) << result.status().message();
+    std::size_t patch_begin = 0;
     int patch = 0;
-    for (std::uint32_t i : result.value().history_dynamic) patch += i >= patch_begin;
+    for (std::uint32_t i : FloatingPatchDynamic(bottom_m, 6.8, config, &patch_begin)) {
+      patch += i >= patch_begin;
+    }
     return patch;
   };
   DynamicDetectionConfig on;
