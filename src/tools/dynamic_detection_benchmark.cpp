@@ -3,6 +3,7 @@
 //
 //   dynamic_detection_benchmark --sim DIR --history-map DIR --current-map DIR
 //       [--history s00] [--current s01] [--pair-radius 15] [--voxel 0.2] [--max-pairs N]
+//       [--near X,Y,R]
 //       [--align submap|start] [--compare-octomap] [--own-indices]
 //
 // GROUND TRUTH IS USED HERE ONLY (never by the pipeline): the two maps are put into the world
@@ -30,6 +31,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -57,6 +59,8 @@ const char kUsage[] =
     "  --pair-radius M    pair submaps whose origins are this close (15)\n"
     "  --voxel M          detector voxel size (default of DynamicDetectionConfig)\n"
     "  --max-pairs N      evaluate at most N pairs (0: all)\n"
+    "  --near X,Y,R       only the pairs whose two submap origins both lie within R [m] of the\n"
+    "                     world point (X, Y): the detection at one place\n"
     "  --align submap|start   truth alignment per submap (default) or per session start\n"
     "  --eval-range M     score only points within M of a scan origin of the other submap of a\n"
     "                     pair (25 = the detector's max_range_m; 0: every paired point)\n"
@@ -287,6 +291,7 @@ int main(int argc, char** argv) {
   std::string align = "submap";
   double pair_radius = 15.0, voxel = 0.0, eval_range = 25.0;
   long long max_pairs = 0;
+  std::vector<double> near;  // x, y, radius (empty: every pair)
   bool compare_octomap = false;
   bool shared_indices = true;
   bool per_object = false;
@@ -313,6 +318,17 @@ int main(int argc, char** argv) {
     else if (arg == "--eval-range") ok = next(&value) && msm::tools::ParseDouble(value, &eval_range);
     else if (arg == "--voxel") ok = next(&value) && msm::tools::ParseDouble(value, &voxel);
     else if (arg == "--max-pairs") ok = next(&value) && msm::tools::ParseInt(value, &max_pairs);
+    else if (arg == "--near") {
+      ok = next(&value);
+      std::stringstream parts(value);
+      std::string part;
+      double v = 0.0;
+      while (ok && std::getline(parts, part, ',')) {
+        ok = msm::tools::ParseDouble(part, &v);
+        near.push_back(v);
+      }
+      ok = ok && near.size() == 3 && near[2] > 0.0;
+    }
     else if (arg == "--compare-octomap") compare_octomap = true;
     else if (arg == "--own-indices") shared_indices = false;
     else if (arg == "--per-object") per_object = true;
@@ -390,8 +406,11 @@ int main(int argc, char** argv) {
   std::vector<std::pair<std::size_t, std::size_t>> pairs;
   for (std::size_t h = 0; h < H.submaps.size(); ++h) {
     for (std::size_t c = 0; c < C.submaps.size(); ++c) {
-      if ((H.T_world_submap[h].translation() - C.T_world_submap[c].translation()).norm() <=
-          pair_radius) {
+      const Eigen::Vector3d& a = H.T_world_submap[h].translation();
+      const Eigen::Vector3d& b = C.T_world_submap[c].translation();
+      const bool here = near.empty() || (std::hypot(a.x() - near[0], a.y() - near[1]) <= near[2] &&
+                                         std::hypot(b.x() - near[0], b.y() - near[1]) <= near[2]);
+      if ((a - b).norm() <= pair_radius && here) {
         pairs.emplace_back(h, c);
       }
     }
