@@ -180,6 +180,42 @@ TEST(NewObjectHoldTest, StructureOfOtherShapesIsAdded) {
   EXPECT_EQ(CountHeld(r.value(), 0, low_wall.size()), static_cast<int>(low_wall.size()));
 }
 
+// A row of three construction fence panels (3.5 m each, 0.1 m apart, 2 m high: one group,
+// 10.7 m long) where the history saw the ground is held back; with max_extent_m below its
+// length it passes for structure and is added. A 2 m high row longer than max_extent_m is
+// added too.
+TEST(NewObjectHoldTest, AFenceRowUpToTheMaxExtentIsHeldBack) {
+  PointVector history_points;
+  AddGround(-5.0, 30.0, -5.0, 5.0, &history_points);
+  std::vector<PlacedPoints> history = {{&history_points, Pose3::Identity()}};
+  auto fence_row = [](int panels) {
+    PointVector row;
+    for (int panel = 0; panel < panels; ++panel) {
+      for (double x = 0.0; x <= 3.5 + 1e-9; x += 0.25) {
+        for (double z = 0.3; z <= 2.0 + 1e-9; z += 0.25) row.emplace_back(3.6 * panel + x, 0.0, z);
+      }
+    }
+    return row;
+  };
+  const PointVector three = fence_row(3);
+  StatusOr<NewObjectHoldResult> r =
+      HoldBackNewObjects(NewObjectHoldConfig(), three, history, PointVector());
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(CountHeld(r.value(), 0, three.size()), static_cast<int>(three.size()));
+  EXPECT_EQ(r.value().groups_held, 1u);
+
+  NewObjectHoldConfig short_extent;
+  short_extent.max_extent_m = 10.5;
+  r = HoldBackNewObjects(short_extent, three, history, PointVector());
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(CountHeld(r.value(), 0, three.size()), 0);
+
+  const PointVector four = fence_row(4);  // 14.3 m
+  r = HoldBackNewObjects(NewObjectHoldConfig(), four, history, PointVector());
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(CountHeld(r.value(), 0, four.size()), 0);
+}
+
 TEST(NewObjectHoldTest, NonFinitePointsAreAnError) {
   PointVector ground;
   AddGround(-5.0, 5.0, -5.0, 5.0, &ground);
@@ -206,6 +242,11 @@ TEST(NewObjectHoldTest, InvalidConfigsAreRejected) {
   EXPECT_FALSE(c.Validate().ok());
   c = NewObjectHoldConfig();
   c.ground_cell_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(c.Validate().ok());
+  c = NewObjectHoldConfig();
+  c.max_extent_m = 0.0;
+  EXPECT_FALSE(c.Validate().ok());
+  c.max_extent_m = std::numeric_limits<double>::infinity();
   EXPECT_FALSE(c.Validate().ok());
 }
 

@@ -115,7 +115,7 @@ TEST(ParameterMapping, EveryParameterReachesTheCoreAndComesBack) {
     core::SessionMergerConfig c;
     ApplyMapMergingConfig(p, &c);
     ExpectSameValues(ToMapMergingConfig(c), p, "MapMerging");
-    EXPECT_EQ(changed, 70);
+    EXPECT_EQ(changed, 71);
   }
 }
 

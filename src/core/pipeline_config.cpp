@@ -243,6 +243,7 @@ std::vector<Key> Keys(PipelineConfig* c) {
       {"map_update", "record_sessions", &m.fusion.record_sessions},
       {"map_update", "hold_new_objects", &m.fusion.hold.enabled},
       {"map_update", "hold_grow_radius_m", &m.fusion.hold.grow_radius_m},
+      {"map_update", "hold_max_extent_m", &m.fusion.hold.max_extent_m},
       {"map_update", "hold_max_attached_fraction", &m.fusion.hold.max_attached_fraction},
       {"map_update", "hold_min_seen_points", &m.fusion.hold.min_seen_points},
       {"map_update", "num_threads", &m.num_threads},

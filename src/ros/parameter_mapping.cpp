@@ -185,6 +185,7 @@ namespace ros_params {
   F(map_update_propagate_radius_m, g.fusion.propagate_radius_m)                              \
   F(map_update_hold_new_objects, g.fusion.hold.enabled)                                       \
   F(map_update_hold_grow_radius_m, g.fusion.hold.grow_radius_m)                               \
+  F(map_update_hold_max_extent_m, g.fusion.hold.max_extent_m)                                 \
   F(map_update_hold_max_attached_fraction, g.fusion.hold.max_attached_fraction)               \
   F(map_update_hold_min_seen_points, g.fusion.hold.min_seen_points)
 
