@@ -192,7 +192,7 @@ TEST(NewObjectHoldTest, AFenceRowUpToTheMaxExtentIsHeldBack) {
     PointVector row;
     for (int panel = 0; panel < panels; ++panel) {
       for (double x = 0.0; x <= 3.5 + 1e-9; x += 0.25) {
-        for (double z = 0.3; z <= 2.0 + 1e-9; z += 0.25) row.emplace_back(3.6 * panel + x, 0.0, z);
+        for (double z = 0.5; z <= 2.0 + 1e-9; z += 0.25) row.emplace_back(3.6 * panel + x, 0.0, z);
       }
     }
     return row;

@@ -320,6 +320,7 @@ int main(int argc, char** argv) {
     else if (arg == "--max-pairs") ok = next(&value) && msm::tools::ParseInt(value, &max_pairs);
     else if (arg == "--near") {
       ok = next(&value);
+      near.clear();  // the last --near counts
       std::stringstream parts(value);
       std::string part;
       double v = 0.0;
@@ -327,7 +328,7 @@ int main(int argc, char** argv) {
         ok = msm::tools::ParseDouble(part, &v);
         near.push_back(v);
       }
-      ok = ok && near.size() == 3 && near[2] > 0.0;
+      ok = ok && near.size() == 3 && near[2] > 0.0 && value.back() != ',';
     }
     else if (arg == "--compare-octomap") compare_octomap = true;
     else if (arg == "--own-indices") shared_indices = false;
@@ -425,6 +426,10 @@ int main(int argc, char** argv) {
               H.name.c_str(), H.submaps.size(), h_points, C.name.c_str(), C.submaps.size(),
               c_points, pairs.size(), pair_radius, per_submap ? "submap" : "session start",
               eval_range);
+  if (!near.empty()) {
+    std::printf("only the pairs with both submap origins within %.1f m of (%.1f, %.1f)\n", near[2],
+                near[0], near[1]);
+  }
   if (compare_octomap && !pairs.empty()) {
     const double v = voxel > 0.0 ? voxel : core::DynamicDetectionConfig().voxel_size_m;
     CompareOctomap(H.submaps[pairs.front().first], v);
@@ -791,7 +796,12 @@ int main(int argc, char** argv) {
   if (!json_path.empty()) {
     std::ofstream out(json_path);
     out << json << ", \"sessions\": [\"" << H.name << "\", \"" << C.name
-        << "\"], \"alignment\": \"truth per " << align << "\"}\n";
+        << "\"], \"alignment\": \"truth per " << align << "\"";
+    if (!near.empty()) {
+      out << ", \"near\": {\"x\": " << near[0] << ", \"y\": " << near[1]
+          << ", \"radius_m\": " << near[2] << "}";
+    }
+    out << "}\n";
     if (!out) {
       std::fprintf(stderr, "dynamic_detection_benchmark: cannot write %s\n", json_path.c_str());
       return 1;
