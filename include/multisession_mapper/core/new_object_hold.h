@@ -35,8 +35,8 @@ struct NewObjectHoldConfig {
   double grow_radius_m = 0.6;
   int min_points = 5;
   /// Movable shape (the detection's changed-object test without normals): horizontal extent
-  /// (bounding-box diagonal) [m], top and bottom above the local ground [m]. The extent is
-  /// wider than the detection's 9 m: the candidates of a row of fence panels or of cars
+  /// (bounding-box diagonal) [m], top and bottom above the local ground [m]. The extent may be
+  /// longer than the detection's 9 m: the candidates of a row of fence panels or of cars
   /// parked close together grow into one group (a row of three 3.5 m construction fence
   /// panels is 10.7 m long), and a group is held back only where the history saw the ground
   /// or removed an object. Session 72, 3-session `campus`, map fit, 9 -> 12 m, seeds 1 / 2 /
